@@ -1,0 +1,125 @@
+//! Messages the simulator delivers to a robot stack.
+
+use crate::Pose;
+use serde::{Deserialize, Serialize};
+
+/// A pose at a sim time.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct PoseStamped {
+    /// Sim time of the measurement, nanoseconds.
+    pub stamp_ns: u64,
+    /// `world_from_body`.
+    pub pose: Pose,
+}
+
+/// A 2D occupancy grid in the world's xy plane, row-major from the south-west corner.
+///
+/// Cell `(col, row)` covers `[origin_x + col * cell_m, origin_x + (col+1) * cell_m) x
+/// [origin_y + row * cell_m, origin_y + (row+1) * cell_m)`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct OccupancyGrid {
+    /// World x of the grid's west edge, metres.
+    pub origin_x: f64,
+    /// World y of the grid's south edge, metres.
+    pub origin_y: f64,
+    /// Cell size, metres.
+    pub cell_m: f64,
+    /// Number of columns (x).
+    pub cols: usize,
+    /// Number of rows (y).
+    pub rows: usize,
+    /// `true` where the cell is occupied; index `row * cols + col`.
+    pub occupied: Vec<bool>,
+}
+
+impl OccupancyGrid {
+    /// Whether `(col, row)` lies in the grid and is free.
+    pub fn is_free(&self, col: i64, row: i64) -> bool {
+        col >= 0
+            && row >= 0
+            && (col as usize) < self.cols
+            && (row as usize) < self.rows
+            && !self.occupied[row as usize * self.cols + col as usize]
+    }
+
+    /// The cell that contains a world point, if inside the grid.
+    pub fn cell_of(&self, x: f64, y: f64) -> Option<(usize, usize)> {
+        let col = ((x - self.origin_x) / self.cell_m).floor();
+        let row = ((y - self.origin_y) / self.cell_m).floor();
+        (col >= 0.0 && row >= 0.0 && (col as usize) < self.cols && (row as usize) < self.rows)
+            .then_some((col as usize, row as usize))
+    }
+
+    /// World coordinates of a cell's centre.
+    pub fn centre_of(&self, col: usize, row: usize) -> [f64; 2] {
+        [
+            self.origin_x + (col as f64 + 0.5) * self.cell_m,
+            self.origin_y + (row as f64 + 0.5) * self.cell_m,
+        ]
+    }
+
+    /// Number of free cells.
+    pub fn free_count(&self) -> usize {
+        self.occupied.iter().filter(|o| !**o).count()
+    }
+}
+
+/// What a robot is asked to do, given once at the start of a run.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub enum Mission {
+    /// Visit these world points in order (z ignored by ground robots).
+    Waypoints(Vec<[f64; 3]>),
+    /// Visit these grid cells in order, moving only up/down/left/right between free cells.
+    GridGoals {
+        /// The map the robot may use.
+        grid: OccupancyGrid,
+        /// Cells `(col, row)` to visit in order.
+        goals: Vec<(usize, usize)>,
+    },
+    /// Stay where it is.
+    Idle,
+}
+
+/// A message delivered to a robot stack.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub enum SensorMsg {
+    /// Ground-truth pose of the robot itself (the "accurate localization" of the seed's parent,
+    /// and the stand-in for estimation until the SLAM and coverage stacks take over).
+    TruthPose(PoseStamped),
+}
+
+impl SensorMsg {
+    /// Sim time of the message, nanoseconds.
+    pub fn stamp_ns(&self) -> u64 {
+        match self {
+            SensorMsg::TruthPose(p) => p.stamp_ns,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn cells_and_centres_agree() {
+        let grid = OccupancyGrid {
+            origin_x: -1.0,
+            origin_y: 2.0,
+            cell_m: 0.5,
+            cols: 4,
+            rows: 3,
+            occupied: vec![false; 12],
+        };
+        for row in 0..3 {
+            for col in 0..4 {
+                let [x, y] = grid.centre_of(col, row);
+                assert_eq!(grid.cell_of(x, y), Some((col, row)));
+            }
+        }
+        assert_eq!(grid.cell_of(-1.1, 2.1), None);
+        assert!(!grid.is_free(-1, 0));
+        assert!(grid.is_free(3, 2));
+        assert!(!grid.is_free(4, 2));
+    }
+}

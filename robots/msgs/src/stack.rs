@@ -1,0 +1,35 @@
+//! The interface every robot stack implements.
+
+use crate::{Command, SensorMsg};
+use serde::{Deserialize, Serialize};
+
+/// How far a stack has got with its mission.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct StackStatus {
+    /// Goals (waypoints, vertices) reached so far.
+    pub goals_reached: usize,
+    /// Goals in the mission.
+    pub goals_total: usize,
+    /// Goals given up (unreachable).
+    pub goals_skipped: usize,
+}
+
+impl StackStatus {
+    /// Whether every goal is reached or given up.
+    pub fn done(&self) -> bool {
+        self.goals_reached + self.goals_skipped >= self.goals_total
+    }
+}
+
+/// The robot software of one robot.
+///
+/// The engine calls [`RobotStack::step`] once per tick, before physics, with the messages
+/// delivered to this robot since the previous call (in delivery order). A stack must be a pure
+/// function of the messages it has seen: no clock, no ambient randomness.
+pub trait RobotStack: Send {
+    /// Turns the messages received since the last call into a command.
+    fn step(&mut self, now_ns: u64, inbox: &[SensorMsg]) -> Command;
+
+    /// Progress with the mission.
+    fn status(&self) -> StackStatus;
+}

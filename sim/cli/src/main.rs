@@ -1,0 +1,170 @@
+//! `hetsim`: run scenarios headless, validate files, measure speed.
+
+use anyhow::{Context, Result};
+use clap::{Parser, Subcommand};
+use hetsim_engine::{run, write_run};
+use hetsim_scene::{load_robot_model, load_scenario, LoadOptions};
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use std::io::IsTerminal;
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::time::Instant;
+
+/// Deterministic multi-robot simulator for cooperative visual mapping.
+#[derive(Parser)]
+#[command(name = "hetsim", version, about)]
+struct Cli {
+    #[command(subcommand)]
+    command: Cmd,
+}
+
+#[derive(Subcommand)]
+enum Cmd {
+    /// Run a scenario headless and write its results directory.
+    Run {
+        /// Scenario file (scenarios/*.toml).
+        scenario: PathBuf,
+        /// Master seed (default: the scenario's `seed`).
+        #[arg(long)]
+        seed: Option<u64>,
+        /// Sim seconds to run (default: the scenario's `duration_secs`).
+        #[arg(long)]
+        duration: Option<f64>,
+        /// Results directory (default: results/runs/<name>-seed<seed>-<digest8>).
+        #[arg(long)]
+        out: Option<PathBuf>,
+    },
+    /// Check scenario and robot files without running anything.
+    Validate {
+        /// Scenario files or robot files (robots/models/*.toml).
+        files: Vec<PathBuf>,
+    },
+    /// Measure sim seconds per wall second (physics and ground truth only).
+    Bench {
+        /// Scenarios to measure.
+        #[arg(default_values = ["scenarios/village.toml", "scenarios/indoor-grid-20.toml"])]
+        scenarios: Vec<PathBuf>,
+        /// Sim seconds to run each.
+        #[arg(long, default_value_t = 120.0)]
+        sim_secs: f64,
+    },
+}
+
+fn main() -> ExitCode {
+    match real_main() {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+fn real_main() -> Result<()> {
+    match Cli::parse().command {
+        Cmd::Run {
+            scenario,
+            seed,
+            duration,
+            out,
+        } => {
+            let options = LoadOptions {
+                seed,
+                duration_secs: duration,
+            };
+            let loaded = load_scenario(&scenario, &options)?;
+            let bar = progress_bar(&loaded.file.name);
+            let start = Instant::now();
+            let result = run(&loaded, |tick, total| {
+                bar.set_length(total);
+                bar.set_position(tick);
+            });
+            bar.finish_and_clear();
+            let wall = start.elapsed().as_secs_f64();
+            let timing = serde_json::json!({
+                "wall_secs": wall,
+                "sim_secs": result.metrics.sim_secs,
+                "realtime_factor": result.metrics.sim_secs / wall.max(1e-9),
+                "threads": rayon_threads(),
+            });
+            let files =
+                write_run(&loaded, result, out.as_deref(), timing).context("writing results")?;
+            println!("results: {}", files.dir.display());
+            println!("digest: {}", files.digest);
+        }
+        Cmd::Validate { files } => {
+            anyhow::ensure!(
+                !files.is_empty(),
+                "name at least one scenario or robot file"
+            );
+            for f in &files {
+                if is_robot_file(f) {
+                    load_robot_model(f, 1e-3)?;
+                } else {
+                    load_scenario(f, &LoadOptions::default())?;
+                }
+                println!("ok: {}", f.display());
+            }
+        }
+        Cmd::Bench {
+            scenarios,
+            sim_secs,
+        } => {
+            println!("| scenario | robots | sim s | wall s | sim s / wall s |");
+            println!("|---|---|---|---|---|");
+            for s in &scenarios {
+                let loaded = load_scenario(
+                    s,
+                    &LoadOptions {
+                        seed: None,
+                        duration_secs: Some(sim_secs),
+                    },
+                )?;
+                let start = Instant::now();
+                let result = run(&loaded, |_, _| {});
+                let wall = start.elapsed().as_secs_f64();
+                println!(
+                    "| {} | {} | {:.0} | {:.3} | {:.0} |",
+                    loaded.file.name,
+                    loaded.robots.len(),
+                    result.metrics.sim_secs,
+                    wall,
+                    result.metrics.sim_secs / wall
+                );
+            }
+        }
+    }
+    Ok(())
+}
+
+/// A robot file is one whose folder is named `models`, or that declares `[body]`.
+fn is_robot_file(path: &std::path::Path) -> bool {
+    path.parent()
+        .and_then(|p| p.file_name())
+        .is_some_and(|n| n == "models")
+        || std::fs::read_to_string(path).is_ok_and(|t| t.lines().any(|l| l.trim() == "[body]"))
+}
+
+fn rayon_threads() -> usize {
+    std::env::var("RAYON_NUM_THREADS")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()))
+}
+
+/// A progress bar on a terminal's stderr; hidden when stderr is not a terminal.
+fn progress_bar(name: &str) -> ProgressBar {
+    if !std::io::stderr().is_terminal() {
+        return ProgressBar::hidden();
+    }
+    let bar = ProgressBar::with_draw_target(Some(0), ProgressDrawTarget::stderr());
+    bar.set_style(
+        ProgressStyle::with_template(
+            "{prefix} [{bar:40}] {percent}% sim  {elapsed} elapsed, {eta} left",
+        )
+        .expect("valid template")
+        .progress_chars("=> "),
+    );
+    bar.set_prefix(name.to_string());
+    bar
+}

@@ -1,0 +1,159 @@
+//! Writing a run's results directory atomically.
+//!
+//! Everything is written into a hidden temporary directory beside the destination, which is
+//! renamed into place only when every file is complete: an interrupted run never leaves a
+//! directory that looks like finished results.
+
+use crate::RunResult;
+use hetsim_msgs::Pose;
+use hetsim_scene::Scenario;
+use serde_json::json;
+use std::path::{Path, PathBuf};
+
+/// Where the results went.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RunFiles {
+    /// The results directory.
+    pub dir: PathBuf,
+    /// The run digest (hex).
+    pub digest: String,
+}
+
+/// Why results could not be written.
+#[derive(Debug, thiserror::Error)]
+pub enum WriteError {
+    /// A file system operation failed.
+    #[error("{}: {source}", path.display())]
+    Io {
+        /// The path involved.
+        path: PathBuf,
+        /// What failed.
+        source: std::io::Error,
+    },
+    /// The destination exists and is not an earlier hetsim run.
+    #[error("{}: exists and is not a hetsim results directory (no manifest.json); choose another --out or remove it", .0.display())]
+    Occupied(PathBuf),
+}
+
+fn io(path: &Path) -> impl FnOnce(std::io::Error) -> WriteError + '_ {
+    move |source| WriteError::Io {
+        path: path.to_path_buf(),
+        source,
+    }
+}
+
+/// One line of a TUM trajectory: `t tx ty tz qx qy qz qw` (seconds, metres, unit quaternion
+/// with w last).
+pub fn tum_line(stamp_ns: u64, pose: &Pose) -> String {
+    let t = pose.translation.vector;
+    let q = pose.rotation.quaternion();
+    format!(
+        "{}.{:09} {:.6} {:.6} {:.6} {:.9} {:.9} {:.9} {:.9}\n",
+        stamp_ns / 1_000_000_000,
+        stamp_ns % 1_000_000_000,
+        t.x,
+        t.y,
+        t.z,
+        q.i,
+        q.j,
+        q.k,
+        q.w
+    )
+}
+
+/// Writes `result` to `dest` (or to `results/runs/<name>-seed<seed>-<digest8>` when `dest` is
+/// `None`), adding every output file to the digest first, and returns the directory and
+/// final digest. `timing` is written to `timing.json` outside the digest.
+pub fn write_run(
+    scenario: &Scenario,
+    mut result: RunResult,
+    dest: Option<&Path>,
+    timing: serde_json::Value,
+) -> Result<RunFiles, WriteError> {
+    let mut files: Vec<(String, Vec<u8>)> = Vec::new();
+    for (name, poses) in &result.truth {
+        let mut text = String::new();
+        for (t, p) in poses {
+            text.push_str(&tum_line(*t, p));
+        }
+        files.push((format!("truth/{name}.tum"), text.into_bytes()));
+    }
+    let metrics = serde_json::to_vec_pretty(&result.metrics).expect("metrics serialize");
+    files.push(("metrics.json".to_string(), metrics));
+    for (name, bytes) in &files {
+        result.digest.record(&format!("file/{name}"), bytes);
+    }
+    let digest = result.digest.hex();
+    let manifest = json!({
+        "hetsim_version": env!("CARGO_PKG_VERSION"),
+        "scenario": scenario.path.display().to_string(),
+        "files_sha256": scenario.file_hashes,
+        "seed": scenario.seed,
+        "dt_secs": scenario.clock.dt_secs(),
+        "duration_secs": scenario.duration_secs,
+        "resolved": {
+            "scenario": scenario.file,
+            "robots": scenario.robots.iter().map(|r| json!({"name": r.spec.name, "model": r.model})).collect::<Vec<_>>(),
+        },
+        "adapter": serde_json::Value::Null,
+        "records": result.digest.records(),
+        "digest": digest,
+    });
+    files.push((
+        "manifest.json".to_string(),
+        serde_json::to_vec_pretty(&manifest).expect("manifest serializes"),
+    ));
+    files.push((
+        "timing.json".to_string(),
+        serde_json::to_vec_pretty(&timing).expect("timing serializes"),
+    ));
+
+    let dir = match dest {
+        Some(d) => d.to_path_buf(),
+        None => PathBuf::from("results/runs").join(format!(
+            "{}-seed{}-{}",
+            scenario.file.name,
+            scenario.seed,
+            &digest[..8]
+        )),
+    };
+    if dir.exists() && !dir.join("manifest.json").is_file() {
+        return Err(WriteError::Occupied(dir));
+    }
+    let parent = dir
+        .parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    std::fs::create_dir_all(parent).map_err(io(parent))?;
+    let leaf = dir
+        .file_name()
+        .map(|n| n.to_string_lossy().to_string())
+        .unwrap_or_else(|| "run".into());
+    let tmp = parent.join(format!(".{leaf}.partial-{}", std::process::id()));
+    if tmp.exists() {
+        std::fs::remove_dir_all(&tmp).map_err(io(&tmp))?;
+    }
+    let written = (|| {
+        for (name, bytes) in &files {
+            let path = tmp.join(name);
+            if let Some(p) = path.parent() {
+                std::fs::create_dir_all(p).map_err(io(p))?;
+            }
+            std::fs::write(&path, bytes).map_err(io(&path))?;
+        }
+        if dir.exists() {
+            // An earlier run with the same destination: move it aside, then replace it.
+            let old = parent.join(format!(".{leaf}.old-{}", std::process::id()));
+            std::fs::rename(&dir, &old).map_err(io(&dir))?;
+            std::fs::rename(&tmp, &dir).map_err(io(&dir))?;
+            std::fs::remove_dir_all(&old).map_err(io(&old))?;
+        } else {
+            std::fs::rename(&tmp, &dir).map_err(io(&dir))?;
+        }
+        Ok(())
+    })();
+    if written.is_err() {
+        let _ = std::fs::remove_dir_all(&tmp);
+    }
+    written.map(|()| RunFiles { dir, digest })
+}

@@ -1,0 +1,97 @@
+//! Which robot software runs on which robot.
+
+use hetsim_msgs::{Mission, RobotStack};
+use hetsim_pilot::{
+    lawnmower, GroundPilot, GroundPilotParams, HeliPilot, HeliPilotParams, Steering,
+};
+use hetsim_scene::{DriveKind, MissionSpec, ResolvedRobot, Scenario, SteeringKind};
+
+/// The stack for a robot: for now the waypoint followers of `hetsim-pilot` on ground truth.
+pub fn build_stack(scenario: &Scenario, robot: &ResolvedRobot) -> Box<dyn RobotStack> {
+    let model = &robot.model;
+    let pilot = &model.pilot;
+    let mission = mission(scenario, &robot.spec.mission);
+    match model.body.drive {
+        DriveKind::Helicopter => {
+            let h = model
+                .body
+                .helicopter
+                .as_ref()
+                .expect("validated helicopter has [body.helicopter]");
+            let route = match mission {
+                Mission::Waypoints(points) => points,
+                _ => Vec::new(),
+            };
+            Box::new(HeliPilot::new(
+                HeliPilotParams {
+                    cruise_mps: pilot.cruise_mps,
+                    max_tilt_rad: h.max_tilt_deg.to_radians(),
+                    max_yaw_rate_radps: model.body.max_yaw_rate_deg_s.to_radians(),
+                    max_climb_mps: h.max_climb_mps,
+                    arrive_m: pilot.arrive_m,
+                    gravity_mps2: 9.81,
+                },
+                route,
+            ))
+        }
+        DriveKind::SkidSteer | DriveKind::Differential => {
+            let w = model
+                .body
+                .wheels
+                .as_ref()
+                .expect("validated wheeled robot has [body.wheels]");
+            let steering = match pilot.steering {
+                SteeringKind::Smooth => Steering::Smooth {
+                    turn_in_place_rad: 60f64.to_radians(),
+                },
+                SteeringKind::RotateThenDrive => Steering::RotateThenDrive {
+                    reaim_m: pilot.reaim_m.unwrap_or(0.2),
+                    aim_tolerance_rad: pilot.aim_tolerance_deg.unwrap_or(2.0).to_radians(),
+                },
+            };
+            Box::new(GroundPilot::new(
+                GroundPilotParams {
+                    track_m: w.track_m,
+                    max_wheel_mps: model.body.max_speed_mps,
+                    cruise_mps: pilot.cruise_mps,
+                    max_yaw_rate_radps: model.body.max_yaw_rate_deg_s.to_radians(),
+                    arrive_m: pilot.arrive_m,
+                    steering,
+                },
+                mission,
+            ))
+        }
+    }
+}
+
+/// The mission message for a mission as written.
+fn mission(scenario: &Scenario, spec: &MissionSpec) -> Mission {
+    match spec {
+        MissionSpec::Idle => Mission::Idle,
+        MissionSpec::Waypoints { points } => Mission::Waypoints(
+            points
+                .iter()
+                .map(|p| [p[0], p[1], p.get(2).copied().unwrap_or(0.0)])
+                .collect(),
+        ),
+        MissionSpec::Lawnmower {
+            from,
+            to,
+            width_m,
+            spacing_m,
+            altitude_m,
+            then,
+        } => {
+            let mut route = lawnmower(*from, *to, *width_m, *spacing_m, *altitude_m);
+            route.extend(then.iter().map(|p| [p[0], p[1], *altitude_m]));
+            Mission::Waypoints(route)
+        }
+        MissionSpec::GridGoals { goals } => match &scenario.world.grid {
+            Some(g) => Mission::GridGoals {
+                grid: g.grid.clone(),
+                goals: goals.iter().map(|v| (v[0], v[1])).collect(),
+            },
+            None => Mission::Idle,
+        },
+    }
+}

@@ -1,0 +1,28 @@
+//! Scenario and robot files: schema, parsing, validation, and the procedural worlds.
+//!
+//! Loading is parse, then validate, then build: [`load_scenario`] reads the scenario, checks
+//! its schema version, deserializes it refusing unknown fields, checks every value against its
+//! allowed range, reads each referenced robot file the same way (applying the scenario's
+//! per-robot overrides), builds the world from the seed, and finally checks that every robot
+//! starts inside the world and outside every obstacle. Every refusal names the file, the line,
+//! the field, the bad value and what is allowed; nothing is run on a refused scenario.
+
+mod check;
+mod error;
+mod load;
+mod robot;
+mod scenario;
+mod source;
+pub mod world;
+
+pub use check::{field_name, Checker};
+pub use error::{FieldError, SceneError};
+pub use load::{load_robot_model, load_scenario, LoadOptions, ResolvedRobot, Scenario};
+pub use robot::{
+    Body, DriveKind, Helicopter, Intrinsics, Mount, Pilot, RobotModel, Sensor, SteeringKind, Wheels,
+};
+pub use scenario::{
+    BoxSpec, IndoorSpec, MissionSpec, RobotSpec, ScenarioFile, Start, VillageSpec, WorldKind,
+    WorldSpec,
+};
+pub use source::{Source, SCHEMA_VERSION};

@@ -1,0 +1,357 @@
+//! Loading a scenario with its robots and building its world.
+
+use crate::check::Checker;
+use crate::robot::{DriveKind, RobotModel};
+use crate::scenario::{MissionSpec, RobotSpec, ScenarioFile, WorldKind};
+use crate::source::Source;
+use crate::world::{generate_indoor, generate_village, KeepClear, World};
+use crate::SceneError;
+use hetsim_core::{SimClock, Streams};
+use sha2::{Digest, Sha256};
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+/// Values the command line may override.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct LoadOptions {
+    /// Replaces the scenario's `seed`.
+    pub seed: Option<u64>,
+    /// Replaces the scenario's `duration_secs`.
+    pub duration_secs: Option<f64>,
+}
+
+/// A robot with its resolved model.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ResolvedRobot {
+    /// How the scenario places it.
+    pub spec: RobotSpec,
+    /// Its robot file with the scenario's overrides applied.
+    pub model: RobotModel,
+    /// The robot file.
+    pub model_path: PathBuf,
+}
+
+/// A loaded, validated scenario and its world.
+#[derive(Clone, Debug)]
+pub struct Scenario {
+    /// The scenario file.
+    pub path: PathBuf,
+    /// What the file says.
+    pub file: ScenarioFile,
+    /// The master seed in force.
+    pub seed: u64,
+    /// The sim time to run, seconds.
+    pub duration_secs: f64,
+    /// The clock.
+    pub clock: SimClock,
+    /// Robots in creation order.
+    pub robots: Vec<ResolvedRobot>,
+    /// The world built from the file and the seed.
+    pub world: World,
+    /// SHA-256 of every file read, keyed by its path as given.
+    pub file_hashes: BTreeMap<String, String>,
+}
+
+fn sha256_hex(bytes: &[u8]) -> String {
+    Sha256::digest(bytes)
+        .iter()
+        .map(|b| format!("{b:02x}"))
+        .collect()
+}
+
+/// Loads a robot file on its own (for `hetsim validate` and tests), checking sensor rates
+/// against a tick of `dt_secs`.
+pub fn load_robot_model(path: &Path, dt_secs: f64) -> Result<RobotModel, SceneError> {
+    let source = Source::read(path)?;
+    let model: RobotModel = source.parse()?;
+    check_model_name(&source, &model)?;
+    model.validate(&Checker::new(&source), dt_secs)?;
+    Ok(model)
+}
+
+fn check_model_name(source: &Source, model: &RobotModel) -> Result<(), SceneError> {
+    let stem = source
+        .path()
+        .file_stem()
+        .and_then(|s| s.to_str())
+        .unwrap_or("");
+    if model.name != stem {
+        return Err(Checker::new(source).error_at(
+            &["name"],
+            format!("\"{}\"", model.name),
+            format!("\"{stem}\", the file's name without .toml"),
+        ));
+    }
+    Ok(())
+}
+
+/// Loads, validates and builds a scenario.
+pub fn load_scenario(path: &Path, options: &LoadOptions) -> Result<Scenario, SceneError> {
+    let source = Source::read(path)?;
+    let file: ScenarioFile = source.parse()?;
+    let c = Checker::new(&source);
+    file.validate(&c)?;
+    if let Some(d) = options.duration_secs {
+        if !(d.is_finite() && d > 0.0) {
+            return Err(SceneError::field(
+                path,
+                None,
+                "--duration",
+                d,
+                "a finite number of seconds > 0",
+            ));
+        }
+    }
+    let clock = SimClock::from_dt_secs(file.dt_secs)
+        .map_err(|e| c.error_at(&["dt_secs"], file.dt_secs, e.to_string()))?;
+    let mut file_hashes = BTreeMap::new();
+    file_hashes.insert(
+        path.display().to_string(),
+        sha256_hex(source.text().as_bytes()),
+    );
+
+    let models_dir = path
+        .parent()
+        .unwrap_or(Path::new("."))
+        .join(&file.models_dir);
+    let mut robots = Vec::new();
+    for (i, spec) in file.robots.iter().enumerate() {
+        let model_path = models_dir.join(format!("{}.toml", spec.model));
+        if !model_path.is_file() {
+            let known = list_models(&models_dir);
+            return Err(c.error_at(
+                &["robots", &i.to_string(), "model"],
+                format!("\"{}\"", spec.model),
+                format!("a robot file in {}: one of {known}", models_dir.display()),
+            ));
+        }
+        let model = load_with_overrides(&c, i, spec, &model_path, file.dt_secs)?;
+        let text = std::fs::read(&model_path).map_err(|e| SceneError::Read {
+            path: model_path.clone(),
+            reason: e.to_string(),
+        })?;
+        file_hashes.insert(model_path.display().to_string(), sha256_hex(&text));
+        robots.push(ResolvedRobot {
+            spec: spec.clone(),
+            model,
+            model_path,
+        });
+    }
+    check_missions(&c, &file, &robots)?;
+
+    let seed = options.seed.unwrap_or(file.seed);
+    let streams = Streams::new(seed);
+    let keep = keep_clear(&file, &robots);
+    let world = match file.world.kind {
+        WorldKind::Village => generate_village(&file.village(), &streams, &keep),
+        WorldKind::IndoorGrid => generate_indoor(&file.indoor(), &streams, &keep),
+    };
+    check_placement(&c, &robots, &world)?;
+    Ok(Scenario {
+        path: path.to_path_buf(),
+        duration_secs: options.duration_secs.unwrap_or(file.duration_secs),
+        file,
+        seed,
+        clock,
+        robots,
+        world,
+        file_hashes,
+    })
+}
+
+fn list_models(dir: &Path) -> String {
+    let mut names: Vec<String> = std::fs::read_dir(dir)
+        .map(|entries| {
+            entries
+                .filter_map(|e| e.ok())
+                .filter_map(|e| {
+                    e.path()
+                        .file_stem()
+                        .and_then(|s| s.to_str())
+                        .map(str::to_string)
+                        .filter(|_| e.path().extension().is_some_and(|x| x == "toml"))
+                })
+                .collect()
+        })
+        .unwrap_or_default();
+    names.sort();
+    if names.is_empty() {
+        "(none found)".to_string()
+    } else {
+        names.join(", ")
+    }
+}
+
+/// Reads a robot file, applies the scenario's overrides for this robot, parses and validates.
+fn load_with_overrides(
+    c: &Checker,
+    index: usize,
+    spec: &RobotSpec,
+    model_path: &Path,
+    dt_secs: f64,
+) -> Result<RobotModel, SceneError> {
+    let source = Source::read(model_path)?;
+    // The file must be valid on its own, so that its own errors point at its own lines.
+    let model: RobotModel = source.parse()?;
+    check_model_name(&source, &model)?;
+    model.validate(&Checker::new(&source), dt_secs)?;
+    if spec.overrides.is_empty() {
+        return Ok(model);
+    }
+    let idx = index.to_string();
+    let mut table: toml::Table = toml::from_str(source.text())
+        .map_err(|e| SceneError::field(model_path, None, "(file)", "", e.to_string()))?;
+    for (key, value) in &spec.overrides {
+        let at = ["robots", idx.as_str(), "overrides", key.as_str()];
+        let slot = lookup_mut(&mut table, key).ok_or_else(|| {
+            c.error(&at, &format!("robots[{index}].overrides.\"{key}\""), value, format!("a dotted path to an existing field of {} (sensors by name, e.g. \"sensors.stereo.rate_hz\")", model_path.display()))
+        })?;
+        *slot = value.clone();
+    }
+    let text = toml::to_string(&table)
+        .map_err(|e| SceneError::field(model_path, None, "(file)", "", e.to_string()))?;
+    let merged = Source::from_text(model_path, text)?;
+    let reword = |e: SceneError| match e {
+        SceneError::Field(f) => c.error(
+            &["robots", idx.as_str(), "overrides"],
+            &format!("robots[{index}].overrides -> {}", f.field),
+            f.value,
+            f.allowed,
+        ),
+        other => other,
+    };
+    let model: RobotModel = merged.parse().map_err(reword)?;
+    model
+        .validate(&Checker::new(&merged), dt_secs)
+        .map_err(reword)?;
+    Ok(model)
+}
+
+/// Finds a field by dotted path; an array of tables is indexed by its elements' `name`.
+fn lookup_mut<'a>(table: &'a mut toml::Table, dotted: &str) -> Option<&'a mut toml::Value> {
+    let mut segments = dotted.split('.');
+    let mut current = table.get_mut(segments.next()?)?;
+    for seg in segments {
+        current = match current {
+            toml::Value::Table(t) => t.get_mut(seg)?,
+            toml::Value::Array(items) => items
+                .iter_mut()
+                .find(|v| v.get("name").and_then(|n| n.as_str()) == Some(seg))?,
+            _ => return None,
+        };
+    }
+    Some(current)
+}
+
+fn check_missions(
+    c: &Checker,
+    file: &ScenarioFile,
+    robots: &[ResolvedRobot],
+) -> Result<(), SceneError> {
+    for (i, r) in robots.iter().enumerate() {
+        let idx = i.to_string();
+        let heli = r.model.body.drive == DriveKind::Helicopter;
+        if matches!(r.spec.mission, MissionSpec::Lawnmower { .. }) && !heli {
+            return Err(c.error_at(&["robots", &idx, "mission", "kind"], "\"lawnmower\"", format!("idle, waypoints or grid_goals for {} (a {:?} robot); lawnmower is for helicopters", r.spec.model, r.model.body.drive)));
+        }
+        if heli && matches!(r.spec.mission, MissionSpec::GridGoals { .. }) {
+            return Err(c.error_at(
+                &["robots", &idx, "mission", "kind"],
+                "\"grid_goals\"",
+                "idle, waypoints or lawnmower for a helicopter",
+            ));
+        }
+        if heli && r.spec.start.z <= 0.0 {
+            return Err(c.error_at(
+                &["robots", &idx, "start", "z"],
+                r.spec.start.z,
+                "a height above the ground > 0 metres for a helicopter",
+            ));
+        }
+        if let (MissionSpec::GridGoals { goals }, WorldKind::IndoorGrid) =
+            (&r.spec.mission, file.world.kind)
+        {
+            let g = file.indoor();
+            let (cols, rows) = (
+                (g.width_m / g.spacing_m).round() as usize,
+                (g.height_m / g.spacing_m).round() as usize,
+            );
+            for (k, goal) in goals.iter().enumerate() {
+                if goal[0] >= cols || goal[1] >= rows {
+                    return Err(c.error_at(
+                        &["robots", &idx, "mission", "goals", &k.to_string()],
+                        format!("{goal:?}"),
+                        format!("a vertex [col, row] with col < {cols} and row < {rows}"),
+                    ));
+                }
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Robot starts and ground routes that buildings and obstacles must leave free.
+fn keep_clear(file: &ScenarioFile, robots: &[ResolvedRobot]) -> KeepClear {
+    let mut keep = KeepClear::default();
+    let g = file.indoor();
+    for r in robots {
+        let radius = r.model.body.length_m.hypot(r.model.body.width_m) / 2.0;
+        let start = [r.spec.start.x, r.spec.start.y];
+        if r.model.body.drive == DriveKind::Helicopter {
+            continue;
+        }
+        let mut path = vec![start];
+        match &r.spec.mission {
+            MissionSpec::Waypoints { points } => path.extend(points.iter().map(|p| [p[0], p[1]])),
+            MissionSpec::GridGoals { goals } => {
+                // Goal vertices stay free too (a point each, not a path through obstacles).
+                for goal in goals {
+                    let centre = [
+                        -g.width_m / 2.0 + (goal[0] as f64 + 0.5) * g.spacing_m,
+                        -g.height_m / 2.0 + (goal[1] as f64 + 0.5) * g.spacing_m,
+                    ];
+                    keep.paths.push((vec![centre], radius));
+                }
+            }
+            _ => {}
+        }
+        keep.paths.push((path, radius + 4.0 * radius.min(1.0)));
+    }
+    keep
+}
+
+fn check_placement(c: &Checker, robots: &[ResolvedRobot], world: &World) -> Result<(), SceneError> {
+    let [hx, hy] = world.half_extent;
+    for (i, r) in robots.iter().enumerate() {
+        let idx = i.to_string();
+        let radius = r.model.body.length_m.max(r.model.body.width_m) / 2.0;
+        let (x, y) = (r.spec.start.x, r.spec.start.y);
+        if x.abs() > hx - radius || y.abs() > hy - radius {
+            return Err(c.error_at(
+                &["robots", &idx, "start"],
+                format!("x = {x}, y = {y}"),
+                format!(
+                    "a start inside the world: |x| <= {}, |y| <= {} for this robot's size",
+                    hx - radius,
+                    hy - radius
+                ),
+            ));
+        }
+        let z = world.ground_z(x, y) + r.spec.start.z;
+        if let Some(s) = world.solid_at(x, y, radius, z) {
+            return Err(c.error_at(&["robots", &idx, "start"], format!("x = {x}, y = {y}"), format!("a start outside every obstacle: the robot would stand inside the {} centred at ({:.2}, {:.2})", format!("{:?}", s.kind).to_lowercase(), s.centre[0], s.centre[1])));
+        }
+        if let MissionSpec::Waypoints { points } = &r.spec.mission {
+            for (k, p) in points.iter().enumerate() {
+                if p[0].abs() > hx || p[1].abs() > hy {
+                    return Err(c.error_at(
+                        &["robots", &idx, "mission", "points", &k.to_string()],
+                        format!("{p:?}"),
+                        format!("a point inside the world: |x| <= {hx}, |y| <= {hy}"),
+                    ));
+                }
+            }
+        }
+    }
+    Ok(())
+}

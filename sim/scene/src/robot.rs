@@ -1,0 +1,618 @@
+//! Robot description files (`robots/models/*.toml`): bodies, drives, pilots and sensors.
+//!
+//! Parsing refuses unknown fields; [`RobotModel::validate`] then checks every value against
+//! its allowed range. Sensors are described here for every later stage (cameras, compass,
+//! GPS, laser, tracker); which of them the simulator models is the engine's business.
+
+use crate::check::Checker;
+use crate::SceneError;
+use serde::{Deserialize, Serialize};
+
+/// A robot description.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RobotModel {
+    /// Must be [`crate::SCHEMA_VERSION`].
+    pub schema_version: i64,
+    /// The model's name; must equal the file's stem.
+    pub name: String,
+    /// One line for people.
+    #[serde(default)]
+    pub description: String,
+    /// Shape, mass and drive.
+    pub body: Body,
+    /// Parameters of the robot's waypoint follower.
+    pub pilot: Pilot,
+    /// The robot's sensors.
+    #[serde(default)]
+    pub sensors: Vec<Sensor>,
+}
+
+/// How a robot moves.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum DriveKind {
+    /// Skid-steer (tracks or four fixed wheels): the rover.
+    SkidSteer,
+    /// Two-wheel differential drive: the parent and the c't-Bots.
+    Differential,
+    /// Helicopter with an attitude/climb-rate autopilot inner loop.
+    Helicopter,
+}
+
+/// Shape, mass and drive limits.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Body {
+    /// Which drive model moves the body.
+    pub drive: DriveKind,
+    /// Extent along the body x axis, metres.
+    pub length_m: f64,
+    /// Extent along the body y axis, metres.
+    pub width_m: f64,
+    /// Extent along the body z axis, metres.
+    pub height_m: f64,
+    /// Mass, kilograms.
+    pub mass_kg: f64,
+    /// Top speed, metres per second.
+    pub max_speed_mps: f64,
+    /// Top yaw rate, degrees per second.
+    pub max_yaw_rate_deg_s: f64,
+    /// Wheel parameters (skid-steer and differential drives).
+    #[serde(default)]
+    pub wheels: Option<Wheels>,
+    /// Rotor/autopilot parameters (helicopter).
+    #[serde(default)]
+    pub helicopter: Option<Helicopter>,
+}
+
+/// Wheel-ground parameters.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Wheels {
+    /// Distance between left and right contact lines, metres.
+    pub track_m: f64,
+    /// First-order time constant of the wheel speed response, seconds.
+    pub motor_time_constant_s: f64,
+    /// Mean fraction of wheel surface speed lost to longitudinal slip, `[0, 0.5]`.
+    pub longitudinal_slip: f64,
+    /// Skid-steer instantaneous-centre-of-rotation expansion: the effective track is
+    /// `track_m * icr_expansion` (1 for an ideal differential drive), `[1, 3]`.
+    pub icr_expansion: f64,
+    /// Standard deviation of the random relative wheel speed error per wheel, `[0, 0.5]`.
+    pub speed_noise: f64,
+}
+
+/// Helicopter autopilot inner-loop parameters.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Helicopter {
+    /// Largest roll or pitch, degrees, `(0, 45]`.
+    pub max_tilt_deg: f64,
+    /// Largest climb or sink rate, metres per second.
+    pub max_climb_mps: f64,
+    /// First-order time constant of the attitude response, seconds.
+    pub attitude_time_constant_s: f64,
+    /// First-order time constant of the climb-rate response, seconds.
+    pub climb_time_constant_s: f64,
+}
+
+/// Steering behaviour of the waypoint follower.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum SteeringKind {
+    /// Turn while driving.
+    Smooth,
+    /// Rotate in place, drive straight, re-aim near the goal (the c't-Bots).
+    RotateThenDrive,
+}
+
+/// Waypoint-follower parameters.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Pilot {
+    /// Speed when on course, metres per second.
+    pub cruise_mps: f64,
+    /// A waypoint counts as reached within this distance, metres.
+    pub arrive_m: f64,
+    /// Steering behaviour (ground robots).
+    #[serde(default = "default_steering")]
+    pub steering: SteeringKind,
+    /// Re-aim distance for `rotate_then_drive`, metres (0.2 m in the seed).
+    #[serde(default)]
+    pub reaim_m: Option<f64>,
+    /// Heading error accepted before driving straight, degrees.
+    #[serde(default)]
+    pub aim_tolerance_deg: Option<f64>,
+}
+
+fn default_steering() -> SteeringKind {
+    SteeringKind::Smooth
+}
+
+/// Where a sensor sits on the body.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Mount {
+    /// Position in the body frame, metres.
+    pub xyz_m: [f64; 3],
+    /// Roll, pitch, yaw of the sensor frame in the body frame, degrees.
+    pub rpy_deg: [f64; 3],
+}
+
+/// Pinhole intrinsics given directly, in pixels.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Intrinsics {
+    /// Focal length along u (αu), pixels.
+    pub alpha_u: f64,
+    /// Focal length along v (αv), pixels.
+    pub alpha_v: f64,
+    /// Principal point u0, pixels.
+    pub u0: f64,
+    /// Principal point v0, pixels.
+    pub v0: f64,
+}
+
+/// A sensor on a robot.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
+pub enum Sensor {
+    /// A pinhole camera.
+    Camera {
+        /// Unique on the robot.
+        name: String,
+        /// Frames per second.
+        rate_hz: f64,
+        /// Mounting pose.
+        mount: Mount,
+        /// Image width, pixels.
+        width_px: u32,
+        /// Image height, pixels.
+        height_px: u32,
+        /// Horizontal opening angle, degrees (used when `intrinsics` is absent).
+        #[serde(default)]
+        hfov_deg: Option<f64>,
+        /// Intrinsics (override `hfov_deg`).
+        #[serde(default)]
+        intrinsics: Option<Intrinsics>,
+        /// Gaussian pixel noise, grey levels (0-255).
+        #[serde(default)]
+        pixel_noise_sigma: f64,
+        /// Radial distortion coefficients `[k1, k2]`.
+        #[serde(default)]
+        distortion: Option<[f64; 2]>,
+    },
+    /// A rectified stereo bench: left camera at `mount`, right camera `baseline_m` to its right.
+    StereoCamera {
+        /// Unique on the robot.
+        name: String,
+        /// Frame pairs per second.
+        rate_hz: f64,
+        /// Mounting pose of the left camera.
+        mount: Mount,
+        /// Image width, pixels.
+        width_px: u32,
+        /// Image height, pixels.
+        height_px: u32,
+        /// Horizontal opening angle, degrees (used when `intrinsics` is absent).
+        #[serde(default)]
+        hfov_deg: Option<f64>,
+        /// Intrinsics (override `hfov_deg`).
+        #[serde(default)]
+        intrinsics: Option<Intrinsics>,
+        /// Distance between the optical centres, metres.
+        baseline_m: f64,
+        /// Gaussian pixel noise, grey levels (0-255).
+        #[serde(default)]
+        pixel_noise_sigma: f64,
+    },
+    /// An omnidirectional camera (the parent's tracker camera).
+    OmniCamera {
+        /// Unique on the robot.
+        name: String,
+        /// Frames per second.
+        rate_hz: f64,
+        /// Mounting pose.
+        mount: Mount,
+        /// Image width, pixels.
+        width_px: u32,
+        /// Image height, pixels.
+        height_px: u32,
+        /// Elevation range seen, degrees below/above the horizon: `[min, max]`.
+        elevation_deg: [f64; 2],
+    },
+    /// A magnetic compass.
+    Compass {
+        /// Unique on the robot.
+        name: String,
+        /// Readings per second.
+        rate_hz: f64,
+        /// Mounting pose.
+        mount: Mount,
+        /// Standard deviation of the heading error, degrees.
+        sigma_deg: f64,
+        /// Constant heading bias, degrees.
+        #[serde(default)]
+        bias_deg: f64,
+    },
+    /// A GPS receiver.
+    Gps {
+        /// Unique on the robot.
+        name: String,
+        /// Fixes per second when available.
+        rate_hz: f64,
+        /// Mounting pose.
+        mount: Mount,
+        /// Standard deviation of horizontal position error, metres.
+        sigma_m: f64,
+    },
+    /// A planar laser scanner.
+    Laser {
+        /// Unique on the robot.
+        name: String,
+        /// Scans per second.
+        rate_hz: f64,
+        /// Mounting pose.
+        mount: Mount,
+        /// Field of view, degrees, `(0, 360]`.
+        fov_deg: f64,
+        /// Angle between beams, degrees.
+        resolution_deg: f64,
+        /// Longest range, metres.
+        max_range_m: f64,
+        /// Standard deviation of range noise, metres.
+        range_sigma_m: f64,
+    },
+    /// The parent's tracker of the children's orange hats.
+    ChildTracker {
+        /// Unique on the robot.
+        name: String,
+        /// Measurements per second.
+        rate_hz: f64,
+        /// Mounting pose.
+        mount: Mount,
+        /// Largest tracking distance, metres (r_los = 2.0 m in the seed).
+        range_m: f64,
+        /// Mean position error, metres (0.04 in the seed).
+        error_mean_m: f64,
+        /// Standard deviation of the position error, metres (0.02 in the seed).
+        error_std_m: f64,
+    },
+}
+
+impl Sensor {
+    /// The sensor's name.
+    pub fn name(&self) -> &str {
+        match self {
+            Sensor::Camera { name, .. }
+            | Sensor::StereoCamera { name, .. }
+            | Sensor::OmniCamera { name, .. }
+            | Sensor::Compass { name, .. }
+            | Sensor::Gps { name, .. }
+            | Sensor::Laser { name, .. }
+            | Sensor::ChildTracker { name, .. } => name,
+        }
+    }
+
+    /// The sensor's rate.
+    pub fn rate_hz(&self) -> f64 {
+        match self {
+            Sensor::Camera { rate_hz, .. }
+            | Sensor::StereoCamera { rate_hz, .. }
+            | Sensor::OmniCamera { rate_hz, .. }
+            | Sensor::Compass { rate_hz, .. }
+            | Sensor::Gps { rate_hz, .. }
+            | Sensor::Laser { rate_hz, .. }
+            | Sensor::ChildTracker { rate_hz, .. } => *rate_hz,
+        }
+    }
+
+    /// The sensor's mounting pose.
+    pub fn mount(&self) -> &Mount {
+        match self {
+            Sensor::Camera { mount, .. }
+            | Sensor::StereoCamera { mount, .. }
+            | Sensor::OmniCamera { mount, .. }
+            | Sensor::Compass { mount, .. }
+            | Sensor::Gps { mount, .. }
+            | Sensor::Laser { mount, .. }
+            | Sensor::ChildTracker { mount, .. } => mount,
+        }
+    }
+}
+
+impl RobotModel {
+    /// Checks every value against its allowed range. `dt_secs` is the scenario's tick, which
+    /// bounds sensor rates (a sensor cannot sample faster than once per tick).
+    pub fn validate(&self, c: &Checker, dt_secs: f64) -> Result<(), SceneError> {
+        let b = &self.body;
+        c.positive(&["body", "length_m"], b.length_m)?;
+        c.positive(&["body", "width_m"], b.width_m)?;
+        c.positive(&["body", "height_m"], b.height_m)?;
+        c.positive(&["body", "mass_kg"], b.mass_kg)?;
+        c.range(&["body", "max_speed_mps"], b.max_speed_mps, 1e-3, 100.0)?;
+        c.range(
+            &["body", "max_yaw_rate_deg_s"],
+            b.max_yaw_rate_deg_s,
+            1e-3,
+            720.0,
+        )?;
+        match b.drive {
+            DriveKind::SkidSteer | DriveKind::Differential => {
+                let Some(w) = &b.wheels else {
+                    return Err(c.error(
+                        &["body"],
+                        "body.wheels",
+                        "(missing)",
+                        "a [body.wheels] table for a skid_steer or differential drive",
+                    ));
+                };
+                c.positive(&["body", "wheels", "track_m"], w.track_m)?;
+                c.range(
+                    &["body", "wheels", "motor_time_constant_s"],
+                    w.motor_time_constant_s,
+                    0.0,
+                    5.0,
+                )?;
+                c.range(
+                    &["body", "wheels", "longitudinal_slip"],
+                    w.longitudinal_slip,
+                    0.0,
+                    0.5,
+                )?;
+                c.range(
+                    &["body", "wheels", "icr_expansion"],
+                    w.icr_expansion,
+                    1.0,
+                    3.0,
+                )?;
+                c.range(&["body", "wheels", "speed_noise"], w.speed_noise, 0.0, 0.5)?;
+                if b.helicopter.is_some() {
+                    return Err(c.error(
+                        &["body", "helicopter"],
+                        "body.helicopter",
+                        "(table)",
+                        "no [body.helicopter] table on a wheeled robot",
+                    ));
+                }
+            }
+            DriveKind::Helicopter => {
+                let Some(h) = &b.helicopter else {
+                    return Err(c.error(
+                        &["body"],
+                        "body.helicopter",
+                        "(missing)",
+                        "a [body.helicopter] table for a helicopter drive",
+                    ));
+                };
+                c.range(
+                    &["body", "helicopter", "max_tilt_deg"],
+                    h.max_tilt_deg,
+                    1e-3,
+                    45.0,
+                )?;
+                c.range(
+                    &["body", "helicopter", "max_climb_mps"],
+                    h.max_climb_mps,
+                    1e-3,
+                    20.0,
+                )?;
+                c.range(
+                    &["body", "helicopter", "attitude_time_constant_s"],
+                    h.attitude_time_constant_s,
+                    0.0,
+                    5.0,
+                )?;
+                c.range(
+                    &["body", "helicopter", "climb_time_constant_s"],
+                    h.climb_time_constant_s,
+                    0.0,
+                    5.0,
+                )?;
+                if b.wheels.is_some() {
+                    return Err(c.error(
+                        &["body", "wheels"],
+                        "body.wheels",
+                        "(table)",
+                        "no [body.wheels] table on a helicopter",
+                    ));
+                }
+            }
+        }
+        let p = &self.pilot;
+        c.range(
+            &["pilot", "cruise_mps"],
+            p.cruise_mps,
+            1e-3,
+            b.max_speed_mps,
+        )?;
+        c.positive(&["pilot", "arrive_m"], p.arrive_m)?;
+        if p.steering == SteeringKind::RotateThenDrive {
+            let reaim = p.reaim_m.ok_or_else(|| {
+                c.error(
+                    &["pilot"],
+                    "pilot.reaim_m",
+                    "(missing)",
+                    "a positive distance in metres for rotate_then_drive steering",
+                )
+            })?;
+            c.positive(&["pilot", "reaim_m"], reaim)?;
+            let tol = p.aim_tolerance_deg.ok_or_else(|| {
+                c.error(
+                    &["pilot"],
+                    "pilot.aim_tolerance_deg",
+                    "(missing)",
+                    "an angle in (0, 45] degrees for rotate_then_drive steering",
+                )
+            })?;
+            c.range(&["pilot", "aim_tolerance_deg"], tol, 1e-3, 45.0)?;
+        }
+        let mut names = std::collections::BTreeSet::new();
+        for (i, sensor) in self.sensors.iter().enumerate() {
+            let idx = i.to_string();
+            let at = |field: &'static str| ["sensors", idx.as_str(), field];
+            if !names.insert(sensor.name()) {
+                return Err(c.error(
+                    &at("name"),
+                    &format!("sensors[{i}].name"),
+                    format!("\"{}\"", sensor.name()),
+                    "a name not used by another sensor of this robot",
+                ));
+            }
+            let tick_hz = 1.0 / dt_secs;
+            c.range(&at("rate_hz"), sensor.rate_hz(), f64::MIN_POSITIVE, tick_hz)
+                .map_err(|e| {
+                    c.reword(
+                        e,
+                        &format!(
+                            "a rate > 0 and <= the tick rate {tick_hz} Hz (dt_secs = {dt_secs})"
+                        ),
+                    )
+                })?;
+            for (k, v) in sensor
+                .mount()
+                .xyz_m
+                .iter()
+                .chain(&sensor.mount().rpy_deg)
+                .enumerate()
+            {
+                if !v.is_finite() {
+                    return Err(c.error(
+                        &at("mount"),
+                        &format!("sensors[{i}].mount"),
+                        v,
+                        "finite numbers",
+                    ));
+                }
+                let _ = k;
+            }
+            match sensor {
+                Sensor::Camera {
+                    width_px,
+                    height_px,
+                    hfov_deg,
+                    intrinsics,
+                    pixel_noise_sigma,
+                    ..
+                } => {
+                    check_image(c, &at, *width_px, *height_px)?;
+                    check_optics(c, &at, *hfov_deg, intrinsics.as_ref())?;
+                    c.range(&at("pixel_noise_sigma"), *pixel_noise_sigma, 0.0, 64.0)?;
+                }
+                Sensor::StereoCamera {
+                    width_px,
+                    height_px,
+                    hfov_deg,
+                    intrinsics,
+                    baseline_m,
+                    pixel_noise_sigma,
+                    ..
+                } => {
+                    check_image(c, &at, *width_px, *height_px)?;
+                    check_optics(c, &at, *hfov_deg, intrinsics.as_ref())?;
+                    c.range(&at("baseline_m"), *baseline_m, 1e-3, 10.0)?;
+                    c.range(&at("pixel_noise_sigma"), *pixel_noise_sigma, 0.0, 64.0)?;
+                }
+                Sensor::OmniCamera {
+                    width_px,
+                    height_px,
+                    elevation_deg,
+                    ..
+                } => {
+                    check_image(c, &at, *width_px, *height_px)?;
+                    if !(elevation_deg[0] >= -90.0
+                        && elevation_deg[0] < elevation_deg[1]
+                        && elevation_deg[1] <= 90.0)
+                    {
+                        return Err(c.error(
+                            &at("elevation_deg"),
+                            &format!("sensors[{i}].elevation_deg"),
+                            format!("{elevation_deg:?}"),
+                            "[min, max] with -90 <= min < max <= 90",
+                        ));
+                    }
+                }
+                Sensor::Compass {
+                    sigma_deg,
+                    bias_deg,
+                    ..
+                } => {
+                    c.range(&at("sigma_deg"), *sigma_deg, 0.0, 90.0)?;
+                    c.range(&at("bias_deg"), *bias_deg, -180.0, 180.0)?;
+                }
+                Sensor::Gps { sigma_m, .. } => c.range(&at("sigma_m"), *sigma_m, 0.0, 100.0)?,
+                Sensor::Laser {
+                    fov_deg,
+                    resolution_deg,
+                    max_range_m,
+                    range_sigma_m,
+                    ..
+                } => {
+                    c.range(&at("fov_deg"), *fov_deg, 1e-3, 360.0)?;
+                    c.range(&at("resolution_deg"), *resolution_deg, 1e-3, *fov_deg)?;
+                    c.positive(&at("max_range_m"), *max_range_m)?;
+                    c.range(&at("range_sigma_m"), *range_sigma_m, 0.0, 1.0)?;
+                }
+                Sensor::ChildTracker {
+                    range_m,
+                    error_mean_m,
+                    error_std_m,
+                    ..
+                } => {
+                    c.positive(&at("range_m"), *range_m)?;
+                    c.range(&at("error_mean_m"), *error_mean_m, 0.0, 1.0)?;
+                    c.range(&at("error_std_m"), *error_std_m, 0.0, 1.0)?;
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+fn check_image<'a>(
+    c: &Checker,
+    at: &dyn Fn(&'static str) -> [&'a str; 3],
+    width: u32,
+    height: u32,
+) -> Result<(), SceneError> {
+    c.range(&at("width_px"), width as f64, 8.0, 8192.0)?;
+    c.range(&at("height_px"), height as f64, 8.0, 8192.0)
+}
+
+fn check_optics<'a>(
+    c: &Checker,
+    at: &dyn Fn(&'static str) -> [&'a str; 3],
+    hfov_deg: Option<f64>,
+    intrinsics: Option<&Intrinsics>,
+) -> Result<(), SceneError> {
+    match (hfov_deg, intrinsics) {
+        (_, Some(k)) => {
+            c.positive(
+                &[
+                    at("intrinsics")[0],
+                    at("intrinsics")[1],
+                    "intrinsics",
+                    "alpha_u",
+                ],
+                k.alpha_u,
+            )?;
+            c.positive(
+                &[
+                    at("intrinsics")[0],
+                    at("intrinsics")[1],
+                    "intrinsics",
+                    "alpha_v",
+                ],
+                k.alpha_v,
+            )
+        }
+        (Some(fov), None) => c.range(&at("hfov_deg"), fov, 1.0, 179.0),
+        (None, None) => Err(c.error(
+            &at("hfov_deg"),
+            &at("hfov_deg").join("."),
+            "(missing)",
+            "hfov_deg in [1, 179] degrees, or an [intrinsics] table",
+        )),
+    }
+}

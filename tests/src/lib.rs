@@ -1,0 +1,69 @@
+//! Helpers shared by the end-to-end tests: paths into the repository and the `hetsim` binary.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+/// The repository root.
+pub fn repo() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .parent()
+        .expect("tests/ has a parent")
+        .to_path_buf()
+}
+
+/// The `hetsim` binary of this build, built first if missing (`cargo test -p hetsim-tests`
+/// alone does not build other packages' binaries).
+pub fn hetsim_bin() -> PathBuf {
+    let exe = std::env::current_exe().expect("test executable path");
+    // target/<profile>/deps/<test> -> target/<profile>/hetsim
+    let profile_dir = exe
+        .parent()
+        .and_then(Path::parent)
+        .expect("target/<profile>");
+    let bin = profile_dir.join(format!("hetsim{}", std::env::consts::EXE_SUFFIX));
+    if !bin.is_file() {
+        let release = profile_dir.file_name().is_some_and(|n| n == "release");
+        let mut cmd = Command::new(env!("CARGO"));
+        cmd.args(["build", "-q", "-p", "hetsim-cli"])
+            .current_dir(repo());
+        if release {
+            cmd.arg("--release");
+        }
+        assert!(
+            cmd.status().expect("cargo runs").success(),
+            "building hetsim-cli failed"
+        );
+    }
+    bin
+}
+
+/// Runs `hetsim` with arguments and extra environment, in the repository root.
+pub fn hetsim(args: &[&str], env: &[(&str, &str)]) -> Output {
+    let mut cmd = Command::new(hetsim_bin());
+    cmd.args(args).current_dir(repo());
+    for (k, v) in env {
+        cmd.env(k, v);
+    }
+    cmd.output().expect("hetsim starts")
+}
+
+/// The `digest: <hex>` line a successful run prints last.
+pub fn printed_digest(out: &Output) -> String {
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "hetsim failed: {}\n{}",
+        stdout,
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let lines: Vec<&str> = stdout.lines().collect();
+    assert!(
+        lines.len() >= 2,
+        "expected results and digest lines, got {stdout:?}"
+    );
+    assert!(lines[lines.len() - 2].starts_with("results: "), "{stdout}");
+    lines[lines.len() - 1]
+        .strip_prefix("digest: ")
+        .expect("last line is the digest")
+        .to_string()
+}

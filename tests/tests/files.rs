@@ -1,0 +1,200 @@
+//! Every shipped file loads; the worlds they describe have the properties DESIGN.md asks for.
+
+use hetsim_scene::world::SolidKind;
+use hetsim_scene::{load_robot_model, load_scenario, LoadOptions, Sensor};
+use hetsim_tests::repo;
+
+fn files_in(dir: &str) -> Vec<std::path::PathBuf> {
+    let mut files: Vec<_> = std::fs::read_dir(repo().join(dir))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e == "toml"))
+        .collect();
+    files.sort();
+    files
+}
+
+#[test]
+fn every_scenario_and_robot_file_loads() {
+    let scenarios = files_in("scenarios");
+    assert!(scenarios.len() >= 5, "{scenarios:?}");
+    for s in scenarios {
+        load_scenario(&s, &LoadOptions::default()).unwrap_or_else(|e| panic!("{e}"));
+    }
+    let models = files_in("robots/models");
+    assert_eq!(models.len(), 4);
+    for m in models {
+        load_robot_model(&m, 1e-3).unwrap_or_else(|e| panic!("{e}"));
+    }
+}
+
+#[test]
+fn robot_files_carry_the_seed_figures() {
+    let model =
+        |n: &str| load_robot_model(&repo().join(format!("robots/models/{n}.toml")), 1e-3).unwrap();
+    let stereo = |m: &hetsim_scene::RobotModel| {
+        m.sensors.iter().find_map(|s| match s {
+            Sensor::StereoCamera {
+                width_px,
+                height_px,
+                baseline_m,
+                ..
+            } => Some((*width_px, *height_px, *baseline_m)),
+            _ => None,
+        })
+    };
+    assert_eq!(stereo(&model("dala")), Some((1024, 768, 0.35)));
+    assert_eq!(stereo(&model("ressac")), Some((1024, 768, 0.9)));
+    let ctbot = model("ctbot");
+    assert!((ctbot.body.length_m - 0.12).abs() < 1e-12);
+    assert!((ctbot.pilot.cruise_mps - 0.15).abs() < 1e-12);
+    assert_eq!(ctbot.pilot.reaim_m, Some(0.2));
+    assert!(ctbot.sensors.iter().any(|s| matches!(s, Sensor::Camera { width_px: 120, height_px: 88, hfov_deg: Some(f), .. } if (*f - 80.0).abs() < 1e-12)));
+    let parent = model("parent");
+    assert!(parent.sensors.iter().any(
+        |s| matches!(s, Sensor::ChildTracker { range_m, rate_hz, error_mean_m, error_std_m, .. }
+        if *range_m == 2.0 && *rate_hz == 23.0 && *error_mean_m == 0.04 && *error_std_m == 0.02)
+    ));
+    assert!(parent.sensors.iter().any(|s| matches!(
+        s,
+        Sensor::OmniCamera {
+            width_px: 780,
+            height_px: 580,
+            ..
+        }
+    )));
+}
+
+#[test]
+fn indoor_grids_reach_their_obstruction_ratio_and_stay_connected() {
+    for (file, ratio) in [
+        ("indoor-grid-0", 0.0),
+        ("indoor-grid-20", 0.2),
+        ("indoor-grid-40", 0.4),
+    ] {
+        for seed in 0..5 {
+            let s = load_scenario(
+                &repo().join(format!("scenarios/{file}.toml")),
+                &LoadOptions {
+                    seed: Some(seed),
+                    duration_secs: None,
+                },
+            )
+            .unwrap();
+            let g = s.world.grid.as_ref().unwrap();
+            assert_eq!((g.grid.cols, g.grid.rows), (60, 60));
+            assert!(
+                (g.realised_ratio - ratio).abs() < 0.01,
+                "{file} seed {seed}: realised {}",
+                g.realised_ratio
+            );
+            assert!(
+                g.unreachable.is_empty(),
+                "{file} seed {seed}: {:?}",
+                g.unreachable
+            );
+            // Obstacles are taller than every sensor of every robot in the scenario.
+            let highest_sensor = s
+                .robots
+                .iter()
+                .flat_map(|r| r.model.sensors.iter().map(|x| x.mount().xyz_m[2]))
+                .fold(0.0, f64::max);
+            for o in s
+                .world
+                .solids
+                .iter()
+                .filter(|o| o.kind == SolidKind::Obstacle)
+            {
+                assert!(
+                    o.top_z() > highest_sensor,
+                    "obstacle {} m <= sensor {highest_sensor} m",
+                    o.top_z()
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn different_seeds_make_different_indoor_maps() {
+    let path = repo().join("scenarios/indoor-grid-20.toml");
+    let a = load_scenario(
+        &path,
+        &LoadOptions {
+            seed: Some(1),
+            duration_secs: None,
+        },
+    )
+    .unwrap();
+    let b = load_scenario(
+        &path,
+        &LoadOptions {
+            seed: Some(2),
+            duration_secs: None,
+        },
+    )
+    .unwrap();
+    let c = load_scenario(
+        &path,
+        &LoadOptions {
+            seed: Some(1),
+            duration_secs: None,
+        },
+    )
+    .unwrap();
+    assert_ne!(a.world.grid, b.world.grid);
+    assert_eq!(a.world.grid, c.world.grid);
+}
+
+#[test]
+fn the_lab_has_84_free_vertices_all_connected() {
+    let s = load_scenario(&repo().join("scenarios/lab.toml"), &LoadOptions::default()).unwrap();
+    let g = s.world.grid.as_ref().unwrap();
+    assert_eq!(g.grid.free_count(), 84);
+    assert!(g.unreachable.is_empty());
+    let area = g.grid.cols as f64 * g.grid.rows as f64 * g.grid.cell_m * g.grid.cell_m;
+    assert!((area - 32.0).abs() < 1.0, "room area {area} m^2");
+}
+
+#[test]
+fn the_village_has_two_building_groups_and_the_rover_starts_in_the_north_west_one() {
+    let s = load_scenario(
+        &repo().join("scenarios/village.toml"),
+        &LoadOptions::default(),
+    )
+    .unwrap();
+    let buildings: Vec<_> = s
+        .world
+        .solids
+        .iter()
+        .filter(|b| b.kind == SolidKind::Building)
+        .collect();
+    let nw = buildings
+        .iter()
+        .filter(|b| b.centre[0] < 0.0 && b.centre[1] > 0.0)
+        .count();
+    let se = buildings
+        .iter()
+        .filter(|b| b.centre[0] > 0.0 && b.centre[1] < 0.0)
+        .count();
+    assert!(nw >= 8 && se >= 8, "nw {nw} se {se}");
+    assert_eq!(nw + se, buildings.len());
+    let terrain = s.world.terrain.as_ref().unwrap();
+    let (lo, hi) = terrain
+        .heights
+        .iter()
+        .fold((f64::MAX, f64::MIN), |(a, b), h| (a.min(*h), b.max(*h)));
+    assert!(hi - lo > 2.0, "terrain has relief: {lo}..{hi}");
+    let dala = &s.robots[0].spec.start;
+    let near = buildings
+        .iter()
+        .filter(|b| (b.centre[0] - dala.x).hypot(b.centre[1] - dala.y) < 80.0)
+        .count();
+    assert!(
+        near >= 5,
+        "the rover starts among buildings ({near} within 80 m)"
+    );
+    for b in &buildings {
+        assert!(!b.footprint_overlaps(dala.x, dala.y, 1.0));
+    }
+}
