@@ -350,9 +350,8 @@ mod tests {
     #[test]
     fn unreachable_grid_goal_is_skipped_not_looped_on() {
         let mut occupied = vec![false; 9];
-        occupied[1 * 3 + 0] = true;
-        occupied[1 * 3 + 1] = true;
-        occupied[1 * 3 + 2] = true; // a wall across the middle row
+        // A wall across the middle row (row 1, cells 3..6).
+        occupied[3..6].fill(true);
         let grid = OccupancyGrid {
             origin_x: 0.0,
             origin_y: 0.0,

@@ -23,7 +23,7 @@ const SKIN_M: f64 = 0.002;
 const GRAVITY: f64 = 9.81;
 
 enum Drive {
-    Ground(GroundDrive),
+    Ground(Box<GroundDrive>),
     Heli(HeliDrive),
 }
 
@@ -68,8 +68,7 @@ fn to_glam(p: &Pose) -> rapier3d::math::Pose {
 impl Physics {
     /// Colliders for every static thing in `world`, in a fixed order: terrain, then solids.
     pub fn new(world: &World, dt_secs: f64) -> Self {
-        let mut pw = PhysicsWorld::default();
-        pw.gravity = Vector::new(0.0, 0.0, -GRAVITY);
+        let mut pw = PhysicsWorld { gravity: Vector::new(0.0, 0.0, -GRAVITY), ..PhysicsWorld::default() };
         pw.integration_parameters.dt = dt_secs;
         if let Some(t) = &world.terrain {
             // parry heightfields are y-up with rows along local z: rotate +90 deg about x so
@@ -130,7 +129,7 @@ impl Physics {
             (DriveKind::Helicopter, _, Some(h)) => {
                 Drive::Heli(HeliDrive::new(model, h.clone(), yaw_rad, GRAVITY))
             }
-            (_, Some(w), _) => Drive::Ground(GroundDrive::new(w.clone(), b.max_speed_mps, rng)),
+            (_, Some(w), _) => Drive::Ground(Box::new(GroundDrive::new(w.clone(), b.max_speed_mps, rng))),
             _ => unreachable!("validated robot models always carry the table their drive needs"),
         };
         let index = self.robots.len();
@@ -303,7 +302,7 @@ impl Physics {
         // Move the collider now so the next robot's sweep sees where this one went.
         self.world.bodies[body].set_position(to_glam(&pose), true);
         let co = self.robots[i].collider;
-        let parent = self.world.bodies[body].position().clone();
+        let parent = *self.world.bodies[body].position();
         if let Some(c) = self.world.colliders.get_mut(co) {
             let offset = *c
                 .position_wrt_parent()
