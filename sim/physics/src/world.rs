@@ -68,7 +68,10 @@ fn to_glam(p: &Pose) -> rapier3d::math::Pose {
 impl Physics {
     /// Colliders for every static thing in `world`, in a fixed order: terrain, then solids.
     pub fn new(world: &World, dt_secs: f64) -> Self {
-        let mut pw = PhysicsWorld { gravity: Vector::new(0.0, 0.0, -GRAVITY), ..PhysicsWorld::default() };
+        let mut pw = PhysicsWorld {
+            gravity: Vector::new(0.0, 0.0, -GRAVITY),
+            ..PhysicsWorld::default()
+        };
         pw.integration_parameters.dt = dt_secs;
         if let Some(t) = &world.terrain {
             // parry heightfields are y-up with rows along local z: rotate +90 deg about x so
@@ -129,7 +132,9 @@ impl Physics {
             (DriveKind::Helicopter, _, Some(h)) => {
                 Drive::Heli(HeliDrive::new(model, h.clone(), yaw_rad, GRAVITY))
             }
-            (_, Some(w), _) => Drive::Ground(Box::new(GroundDrive::new(w.clone(), b.max_speed_mps, rng))),
+            (_, Some(w), _) => {
+                Drive::Ground(Box::new(GroundDrive::new(w.clone(), b.max_speed_mps, rng)))
+            }
             _ => unreachable!("validated robot models always carry the table their drive needs"),
         };
         let index = self.robots.len();
