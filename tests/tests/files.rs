@@ -198,3 +198,46 @@ fn the_village_has_two_building_groups_and_the_rover_starts_in_the_north_west_on
         assert!(!b.footprint_overlaps(dala.x, dala.y, 1.0));
     }
 }
+
+#[test]
+fn in_the_village_the_rover_rides_the_terrain_and_the_helicopter_holds_40_m() {
+    use hetsim_engine::run;
+    let s = load_scenario(
+        &repo().join("scenarios/village.toml"),
+        &LoadOptions {
+            seed: None,
+            duration_secs: Some(120.0),
+        },
+    )
+    .unwrap();
+    let result = run(&s, |_, _| {});
+    let terrain = s.world.terrain.as_ref().unwrap();
+    let (_, dala) = &result.truth[0];
+    let (_, ressac) = &result.truth[1];
+    for (_, pose) in dala {
+        let t = pose.translation.vector;
+        // Seated by rays on the heightfield's triangles vs. bilinear interpolation here: close.
+        assert!(
+            (t.z - terrain.height_at(t.x, t.y)).abs() < 0.3,
+            "rover at {t:?}"
+        );
+    }
+    let start_ground = terrain.height_at(-110.0, 110.0);
+    assert!((ressac[0].1.translation.z - (start_ground + 40.0)).abs() < 1e-9);
+    for (stamp, pose) in ressac.iter().filter(|(t, _)| *t > 30_000_000_000) {
+        let z = pose.translation.z;
+        assert!((z - 40.0).abs() < 3.0, "helicopter at {z} m at {stamp} ns");
+    }
+    let travelled = result.metrics.robots[1].distance_m;
+    // Cruise is 6 m/s; accelerating and turning at the leg ends costs some of that.
+    assert!(travelled > 400.0, "helicopter flew {travelled} m in 120 s");
+    assert_eq!(
+        result
+            .metrics
+            .robots
+            .iter()
+            .map(|r| r.collisions)
+            .sum::<u32>(),
+        0
+    );
+}

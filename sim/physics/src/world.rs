@@ -15,8 +15,8 @@ const TAG_SOLID: u128 = 2;
 /// Robot colliders carry `TAG_ROBOT + robot index`.
 const TAG_ROBOT: u128 = 1 << 32;
 
-/// Height above the ground at which ground rays start, metres.
-const RAY_START_M: f64 = 50.0;
+/// Height at which downward ground rays start, metres (above any terrain or floor).
+const RAY_START_M: f64 = 5_000.0;
 /// Gap kept between a robot and what it bumped into, metres.
 const SKIN_M: f64 = 0.002;
 /// Gravity, m/s^2.
@@ -54,6 +54,8 @@ pub struct Physics {
     world: PhysicsWorld,
     robots: Vec<Robot>,
     dt: f64,
+    /// Colliders were added that rapier's query structure does not know yet.
+    unindexed: bool,
 }
 
 fn to_glam(p: &Pose) -> rapier3d::math::Pose {
@@ -108,10 +110,23 @@ impl Physics {
                     .user_data(tag);
             pw.insert_collider(collider, None);
         }
-        Self {
+        let mut physics = Self {
             world: pw,
             robots: Vec::new(),
             dt: dt_secs,
+            unindexed: true,
+        };
+        physics.index_new_colliders();
+        physics
+    }
+
+    /// Queries only see colliders that a pipeline step has put into the broad phase (a
+    /// collision-detection pass alone does not). With only fixed and kinematic bodies a step
+    /// moves nothing, so one is taken whenever colliders were added.
+    fn index_new_colliders(&mut self) {
+        if self.unindexed {
+            self.world.step();
+            self.unindexed = false;
         }
     }
 
@@ -169,6 +184,7 @@ impl Physics {
         }
         self.world.bodies[body].set_position(to_glam(&robot.pose), true);
         self.robots.push(robot);
+        self.unindexed = true;
         index
     }
 
@@ -181,12 +197,19 @@ impl Physics {
         let qp = self.world.query_pipeline_with_filter(filter);
         let height = |lx: f64, ly: f64| {
             let (px, py) = (x + c * lx - s * ly, y + s * lx + c * ly);
-            let ray = Ray::new(
-                Vector::new(px, py, RAY_START_M + 1000.0),
-                Vector::new(0.0, 0.0, -1.0),
-            );
-            qp.cast_ray(&ray, 4000.0, true)
-                .map_or(0.0, |(_, toi)| RAY_START_M + 1000.0 - toi)
+            // A ray exactly through a heightfield vertex can slip between its triangles:
+            // retry nudged by a micrometre before giving up.
+            [(0.0, 0.0), (1e-6, 1e-6), (-1e-6, 2e-6)]
+                .iter()
+                .find_map(|(dx, dy)| {
+                    let ray = Ray::new(
+                        Vector::new(px + dx, py + dy, RAY_START_M),
+                        Vector::new(0.0, 0.0, -1.0),
+                    );
+                    qp.cast_ray(&ray, 2.0 * RAY_START_M, true)
+                        .map(|(_, toi)| RAY_START_M - toi)
+                })
+                .unwrap_or(0.0)
         };
         let (fl, fr, bl, br) = (
             height(hl, hw),
@@ -238,6 +261,7 @@ impl Physics {
 
     /// Advances every robot's drive by one step, moves the bodies, and steps rapier.
     pub fn step(&mut self) {
+        self.index_new_colliders();
         for i in 0..self.robots.len() {
             self.step_robot(i);
         }
@@ -329,5 +353,125 @@ impl Physics {
     /// Number of colliders (static and robots).
     pub fn collider_count(&self) -> usize {
         self.world.colliders.len()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use hetsim_core::Streams;
+    use hetsim_msgs::yaw_of;
+    use hetsim_scene::world::{Solid, Terrain};
+
+    fn model(name: &str) -> RobotModel {
+        let text = std::fs::read_to_string(format!(
+            "{}/../../robots/models/{name}.toml",
+            env!("CARGO_MANIFEST_DIR")
+        ))
+        .unwrap();
+        toml::from_str(&text).unwrap()
+    }
+
+    fn solid(kind: SolidKind, centre: [f64; 3], half: [f64; 3]) -> Solid {
+        Solid {
+            kind,
+            centre,
+            half_extents: half,
+            yaw_rad: 0.0,
+            material_seed: 0,
+        }
+    }
+
+    #[test]
+    fn a_robot_driving_into_a_wall_stops_at_it_and_counts_one_collision() {
+        let world = World {
+            half_extent: [5.0, 5.0],
+            terrain: None,
+            solids: vec![
+                solid(SolidKind::Floor, [0.0, 0.0, -0.05], [5.0, 5.0, 0.05]),
+                solid(SolidKind::Wall, [1.0, 0.0, 1.0], [0.05, 2.0, 1.0]),
+            ],
+            grid: None,
+        };
+        let mut physics = Physics::new(&world, 0.01);
+        let bot = model("ctbot");
+        let i = physics.add_robot(&bot, 0.0, 0.0, 0.0, 0.0, Streams::new(1).stream("bot"));
+        for _ in 0..2000 {
+            physics.command(
+                i,
+                &Command::Wheels {
+                    left_mps: 0.15,
+                    right_mps: 0.15,
+                },
+            );
+            physics.step();
+        }
+        let x = physics.pose(i).translation.x;
+        let front = x + bot.body.length_m / 2.0;
+        assert!(
+            front <= 0.95 + 1e-6 && front > 0.9,
+            "front at {front}: stopped at the wall face (0.95)"
+        );
+        assert_eq!(
+            physics.state(i).collisions,
+            1,
+            "pushing on is one contact episode"
+        );
+        assert!(physics.state(i).in_contact);
+    }
+
+    #[test]
+    fn a_rover_on_a_slope_sits_on_the_terrain_and_pitches_with_it() {
+        // A plane rising 0.1 m per metre towards +x.
+        let (n, cell) = (41, 1.0);
+        let heights = (0..n * n)
+            .map(|k| 0.1 * ((k % n) as f64 * cell - 20.0))
+            .collect();
+        let world = World {
+            half_extent: [20.0, 20.0],
+            terrain: Some(Terrain {
+                origin: [-20.0, -20.0],
+                cell_m: cell,
+                nx: n,
+                ny: n,
+                heights,
+            }),
+            solids: Vec::new(),
+            grid: None,
+        };
+        let mut physics = Physics::new(&world, 0.01);
+        let i = physics.add_robot(
+            &model("dala"),
+            2.0,
+            3.0,
+            0.0,
+            0.0,
+            Streams::new(1).stream("r"),
+        );
+        let pose = physics.pose(i);
+        assert!(
+            (pose.translation.z - 0.2).abs() < 1e-6,
+            "z = {}",
+            pose.translation.z
+        );
+        let (_, pitch, _) = pose.rotation.euler_angles();
+        // Uphill ahead: the nose points up, which is negative pitch in R = Rz Ry Rx.
+        assert!((pitch + 0.1f64.atan()).abs() < 1e-6, "pitch {pitch}");
+        // Facing north the slope is sideways: roll instead (left side, +x, is higher? no: -x is
+        // left when facing north, so the left side is lower and the robot rolls left-down).
+        let j = physics.add_robot(
+            &model("dala"),
+            -5.0,
+            -5.0,
+            0.0,
+            std::f64::consts::FRAC_PI_2,
+            Streams::new(1).stream("s"),
+        );
+        let (roll, pitch, _) = physics.pose(j).rotation.euler_angles();
+        assert!(
+            pitch.abs() < 1e-6 && (roll - (-0.1f64).atan()).abs() < 1e-6,
+            "roll {roll} pitch {pitch}"
+        );
+        assert!((yaw_of(&physics.pose(j)) - std::f64::consts::FRAC_PI_2).abs() < 1e-9);
     }
 }
