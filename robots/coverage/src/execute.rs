@@ -1,0 +1,647 @@
+//! Executing a mission at the grid level, one timestep at a time (Sections IV.C-D, V.A).
+//!
+//! Decisions:
+//! * **Timestep.** A timestep is the time of one up/down/left/right step of a robot. While
+//!   mapping, all children step in parallel (a child whose next vertex is occupied waits),
+//!   which is why more children need fewer mapping timesteps, as in the paper. Coordination
+//!   moves (stage transitions, following) are made one robot at a time, so they cost one
+//!   timestep per step: this keeps every transition free of collisions without a
+//!   multi-robot path planner, and makes coordination grow with the number of children, as
+//!   the paper observes. The parent's steps are coordination timesteps.
+//! * **Mapping vs coordination.** Timesteps of a stage's mapping (children walking their
+//!   roadmaps and grabbing) are mapping timesteps; moving between stages, the following
+//!   behaviour included, are coordination timesteps. Reaching a stage's start points is
+//!   mapping (it happens inside the stage).
+//! * **Image grabs** take no extra timestep. A child grabs when it stands on an unimaged
+//!   child vertex of the stage and no other robot is in its view (the view cone of
+//!   [`crate::visibility`], robots as discs). Otherwise it waits; if the whole team is stuck
+//!   the grab is deferred and the child walks on. Deferred vertices are mopped up one at a
+//!   time at the end of the stage: the nearest child goes there, robots in its view step
+//!   out of it, then it grabs.
+//! * **C(t)** is LOS_free(v_p^t) minus V_p minus what is already imaged, so a vertex a stage
+//!   could not image is tried again by later stages; what no stage images is reported.
+//! * **Transitions (Eq. 8).** H = LOS(v_p^t) ∩ LOS(v_p^(t+1)) without the parent's path and
+//!   the two parent vertices. If the children can take N distinct vertices of H, they move
+//!   there (nearest first), then the parent drives its shortest path. Otherwise a following
+//!   behaviour is counted: children standing on the parent's path step off it, the parent
+//!   drives, and the children follow it into LOS(v_p^(t+1)), nearest first.
+//! * **Start.** The parent first drives from its start vertex to the first parent vertex in
+//!   the same way. Children given no start vertices stand on the free vertices nearest the
+//!   parent (breadth-first order) that are not dead ends.
+//! * **Infeasible transitions.** Moves are single steps between free vertices and robots
+//!   never pass each other, so a one-vertex-wide passage can make a transition impossible
+//!   (a child shut in a dead end that the parent must enter). Such a stage is skipped and
+//!   reported; later stages image what they can of its vertices, and the rest is reported as
+//!   `unreached`, apart from `uncoverable` (vertices no parent vertex sees freely).
+
+use crate::map::{Map, Vertex};
+use crate::roadmap::stage_roadmaps;
+use crate::select::{select_parent_vertices, tour};
+use crate::visibility::{in_view, Visibility};
+use crate::CoverageParams;
+use serde::Serialize;
+
+/// Which part of the mission a timestep belongs to.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Phase {
+    /// Children walking a stage's roadmaps and grabbing images.
+    Mapping,
+    /// Moving the team between parent vertices.
+    Coordination,
+}
+
+/// The state after one timestep.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Frame {
+    /// Mapping or coordination.
+    pub phase: Phase,
+    /// Index of the stage (parent vertex in tour order) this timestep belongs to.
+    pub stage: usize,
+    /// Robot positions after the step: the parent first, then the children.
+    pub positions: Vec<Vertex>,
+    /// Images grabbed at the end of this timestep: (child index, vertex).
+    pub grabs: Vec<(usize, Vertex)>,
+}
+
+/// A whole mission.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Plan {
+    /// Number of vertices |V|.
+    pub vertices: usize,
+    /// V_p in visiting order.
+    pub parent_vertices: Vec<Vertex>,
+    /// C(t) as imaged, per stage.
+    pub child_sets: Vec<Vec<Vertex>>,
+    /// Vertices of V \ V_p that no parent vertex has in its LOS_free: no parent placement
+    /// lets a child image them.
+    pub uncoverable: Vec<Vertex>,
+    /// Vertices some parent vertex does see freely, but that were not imaged because the
+    /// team could not get there (see `skipped_stages`).
+    pub unreached: Vec<Vertex>,
+    /// Stages (indices into `parent_vertices`) skipped because the team could not be moved
+    /// there without two robots passing each other in a one-vertex-wide passage.
+    pub skipped_stages: Vec<usize>,
+    /// Positions at the start: the parent, then the children.
+    pub start: Vec<Vertex>,
+    /// The schedule.
+    pub frames: Vec<Frame>,
+    /// Timesteps spent mapping.
+    pub mapping_timesteps: usize,
+    /// Timesteps spent moving between stages.
+    pub coordination_timesteps: usize,
+    /// Stage transitions done by the following behaviour.
+    pub following_behaviours: usize,
+    /// Unit steps of all robots together.
+    pub robot_steps: usize,
+}
+
+impl Plan {
+    /// Images grabbed over V \ V_p.
+    pub fn coverage(&self) -> f64 {
+        let target = self.vertices - self.parent_vertices.len();
+        let imaged: usize = self.child_sets.iter().map(Vec::len).sum();
+        if target == 0 {
+            1.0
+        } else {
+            imaged as f64 / target as f64
+        }
+    }
+}
+
+/// Why a plan could not be made.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum PlanError {
+    /// A start vertex is occupied or outside the map.
+    #[error("start vertex {0} is not a free vertex of the map")]
+    BadStart(Vertex),
+    /// Two robots start on the same vertex.
+    #[error("two robots start on vertex {0}")]
+    SharedStart(Vertex),
+    /// A robot could not be moved without a collision.
+    #[error("stage {stage}: robot {robot} cannot reach {target:?} without passing another robot")]
+    Stuck {
+        /// The stage.
+        stage: usize,
+        /// The robot (0 is the parent).
+        robot: usize,
+        /// Where it was going.
+        target: Option<Vertex>,
+    },
+}
+
+struct Run<'a> {
+    map: &'a Map,
+    params: &'a CoverageParams,
+    vis: &'a Visibility,
+    pos: Vec<Vertex>,
+    frames: Vec<Frame>,
+    imaged: Vec<bool>,
+    robot_steps: usize,
+    stage: usize,
+}
+
+impl Run<'_> {
+    fn occupied_by_other(&self, robot: usize, v: Vertex) -> bool {
+        self.pos
+            .iter()
+            .enumerate()
+            .any(|(k, &p)| k != robot && p == v)
+    }
+
+    fn radius(&self, robot: usize) -> f64 {
+        if robot == 0 {
+            self.params.parent_radius_m
+        } else {
+            self.params.child_radius_m
+        }
+    }
+
+    /// Whether child `robot` standing on `at` has another robot in view.
+    fn view_blocked(&self, robot: usize, at: Vertex) -> bool {
+        self.pos
+            .iter()
+            .enumerate()
+            .any(|(k, &u)| k != robot && in_view(self.map, self.params, at, u, self.radius(k)))
+    }
+
+    fn push(&mut self, phase: Phase, grabs: Vec<(usize, Vertex)>) {
+        self.frames.push(Frame {
+            phase,
+            stage: self.stage,
+            positions: self.pos.clone(),
+            grabs,
+        });
+    }
+
+    /// Moves one robot alone along a shortest path (avoiding the others) to the first vertex
+    /// satisfying `goal`, one frame per step. When other children block every such path,
+    /// the path is planned through them and each blocking child is first pushed off it to
+    /// the nearest vertex that is not on it (recursively, at most one level per robot). While
+    /// coordinating, the parent may be pushed aside too; while mapping, never. Returns where the robot ended.
+    fn walk_alone(
+        &mut self,
+        robot: usize,
+        phase: Phase,
+        goal: impl Fn(Vertex) -> bool,
+        within: impl Fn(Vertex) -> bool,
+    ) -> Result<Vertex, PlanError> {
+        self.walk_pushing(robot, phase, &goal, &within, 0)
+    }
+
+    fn walk_pushing(
+        &mut self,
+        robot: usize,
+        phase: Phase,
+        goal: &dyn Fn(Vertex) -> bool,
+        within: &dyn Fn(Vertex) -> bool,
+        depth: usize,
+    ) -> Result<Vertex, PlanError> {
+        let stuck = PlanError::Stuck {
+            stage: self.stage,
+            robot,
+            target: None,
+        };
+        // While coordinating, the parent may step aside too; while mapping it holds its
+        // parent vertex.
+        let push_parent = phase == Phase::Coordination;
+        for _attempt in 0..4 * self.pos.len() {
+            if let Some(path) = self.map.path_to(self.pos[robot], goal, |v| {
+                within(v) && !self.occupied_by_other(robot, v)
+            }) {
+                for &v in &path[1..] {
+                    self.pos[robot] = v;
+                    self.robot_steps += 1;
+                    self.push(phase, Vec::new());
+                }
+                return Ok(self.pos[robot]);
+            }
+            if depth > self.pos.len() {
+                return Err(stuck);
+            }
+            let parent_at = self.pos[0];
+            let through = self
+                .map
+                .path_to(self.pos[robot], goal, |v| {
+                    within(v) && (robot == 0 || push_parent || v != parent_at)
+                })
+                .ok_or(stuck.clone())?;
+            let mut on_path = vec![false; self.map.len()];
+            for &v in &through {
+                on_path[v] = true;
+            }
+            let first = if push_parent { 0 } else { 1 };
+            let blocker = through[1..]
+                .iter()
+                .find_map(|&v| (first..self.pos.len()).find(|&k| k != robot && self.pos[k] == v));
+            let Some(b) = blocker else { return Err(stuck) };
+            let me = self.pos[robot];
+            let on_path = &on_path;
+            let off = move |u: Vertex| !on_path[u] && u != me;
+            // A pushed robot never plans through the robot pushing it (that would only push
+            // the pusher back), nor, if it is a child, through the parent.
+            let keep = move |u: Vertex| u != me && (b == 0 || u != parent_at);
+            self.walk_pushing(b, phase, &off, &keep, depth + 1)?;
+        }
+        Err(stuck)
+    }
+
+    fn transition(&mut self, to: Vertex) -> Result<bool, PlanError> {
+        let from = self.pos[0];
+        if from == to {
+            return Ok(false);
+        }
+        let n = self.pos.len() - 1;
+        let parent_path =
+            self.map
+                .path_to(from, |v| v == to, |_| true)
+                .ok_or(PlanError::Stuck {
+                    stage: self.stage,
+                    robot: 0,
+                    target: Some(to),
+                })?;
+        let mut on_path = vec![false; self.map.len()];
+        for &v in &parent_path {
+            on_path[v] = true;
+        }
+        let mut in_h = vec![false; self.map.len()];
+        for &v in &self.vis.los[from] {
+            if !on_path[v] && self.vis.los[to].binary_search(&v).is_ok() {
+                in_h[v] = true;
+            }
+        }
+        let h_count = in_h.iter().filter(|x| **x).count();
+        let mut following = h_count < n;
+        if !following {
+            // Children to distinct vertices of H, nearest first, staying in the parent's sight.
+            let los_from: Vec<bool> = {
+                let mut s = vec![false; self.map.len()];
+                for &v in &self.vis.los[from] {
+                    s[v] = true;
+                }
+                s
+            };
+            let order = self.nearest_first(|v| in_h[v]);
+            let saved = (self.pos.clone(), self.frames.len(), self.robot_steps);
+            for j in order {
+                let ok = self
+                    .walk_alone(
+                        j,
+                        Phase::Coordination,
+                        |v| in_h[v],
+                        |v| los_from[v] || in_h[v],
+                    )
+                    .is_ok();
+                if !ok {
+                    // Undo and fall back to following.
+                    self.pos = saved.0.clone();
+                    self.frames.truncate(saved.1);
+                    self.robot_steps = saved.2;
+                    following = true;
+                    break;
+                }
+            }
+        }
+        if following {
+            // Children step off the parent's path, then follow it after the parent.
+            for j in 1..=n {
+                if on_path[self.pos[j]] && self.pos[j] != from {
+                    self.walk_alone(j, Phase::Coordination, |v| !on_path[v], |_| true)?;
+                }
+            }
+        }
+        // The parent drives (re-planning around children if one still blocks its path).
+        self.walk_alone(0, Phase::Coordination, |v| v == to, |_| true)?;
+        if following {
+            let mut around = vec![false; self.map.len()];
+            for &v in &self.vis.los[to] {
+                around[v] = true;
+            }
+            for j in self.nearest_first(|v| around[v]) {
+                if !around[self.pos[j]] {
+                    self.walk_alone(j, Phase::Coordination, |v| around[v], |_| true)?;
+                }
+            }
+        }
+        Ok(following)
+    }
+
+    /// Children ordered by geodesic distance to the nearest vertex satisfying `goal`.
+    fn nearest_first(&self, goal: impl Fn(Vertex) -> bool) -> Vec<usize> {
+        let n = self.pos.len() - 1;
+        let mut order: Vec<(usize, usize)> = (1..=n)
+            .map(|j| {
+                let d = self
+                    .map
+                    .path_to(self.pos[j], &goal, |_| true)
+                    .map_or(usize::MAX, |p| p.len());
+                (d, j)
+            })
+            .collect();
+        order.sort_unstable();
+        order.into_iter().map(|(_, j)| j).collect()
+    }
+
+    /// Walks the stage's roadmaps in parallel, then mops up deferred vertices.
+    fn map_stage(&mut self, child_set: &[Vertex]) -> Result<Vec<Vertex>, PlanError> {
+        let parent = self.pos[0];
+        let mut los_parent = vec![false; self.map.len()];
+        for &v in &self.vis.los[parent] {
+            los_parent[v] = true;
+        }
+        let mut in_set = vec![false; self.map.len()];
+        for &c in child_set {
+            in_set[c] = true;
+        }
+        let children: Vec<Vertex> = self.pos[1..].to_vec();
+        let roadmaps = stage_roadmaps(
+            self.map,
+            self.params,
+            &los_parent,
+            parent,
+            &children,
+            child_set,
+        );
+        let mut walks = roadmaps.walks;
+        let n = walks.len();
+        let mut idx = vec![0usize; n];
+        let mut pending = vec![false; n];
+        let mut deferred: Vec<Vertex> = Vec::new();
+        let mut imaged_here = Vec::new();
+        loop {
+            let active = (0..n).any(|j| pending[j] || idx[j] + 1 < walks[j].len());
+            if !active {
+                break;
+            }
+            let mut moved = false;
+            for j in 0..n {
+                let robot = j + 1;
+                if pending[j] || idx[j] + 1 >= walks[j].len() {
+                    continue;
+                }
+                let next = walks[j][idx[j] + 1];
+                if !self.occupied_by_other(robot, next) {
+                    self.pos[robot] = next;
+                    idx[j] += 1;
+                    self.robot_steps += 1;
+                    moved = true;
+                }
+            }
+            let mut grabs = Vec::new();
+            for (j, waiting) in pending.iter_mut().enumerate() {
+                let (robot, at) = (j + 1, self.pos[j + 1]);
+                *waiting = false;
+                if in_set[at] && !self.imaged[at] {
+                    if self.view_blocked(robot, at) {
+                        *waiting = true;
+                    } else {
+                        self.imaged[at] = true;
+                        imaged_here.push(at);
+                        grabs.push((j, at));
+                    }
+                }
+            }
+            if moved || !grabs.is_empty() {
+                self.push(Phase::Mapping, grabs);
+                continue;
+            }
+            // Nobody could do anything: defer one blocked grab, or re-route one blocked walk.
+            if let Some(j) = (0..n).find(|&j| pending[j]) {
+                pending[j] = false;
+                deferred.push(self.pos[j + 1]);
+                // Mark as handled for this walk; the mop-up grabs it.
+                in_set[self.pos[j + 1]] = false;
+                continue;
+            }
+            let j = (0..n)
+                .find(|&j| idx[j] + 1 < walks[j].len())
+                .expect("an active child exists");
+            let robot = j + 1;
+            let rest: Vec<Vertex> = walks[j][idx[j] + 1..].to_vec();
+            let reroute = rest.iter().enumerate().find_map(|(k, &target)| {
+                if self.occupied_by_other(robot, target) {
+                    return None;
+                }
+                self.map
+                    .path_to(
+                        self.pos[robot],
+                        |v| v == target,
+                        |v| v != parent && !self.occupied_by_other(robot, v),
+                    )
+                    .map(|p| (k, p))
+            });
+            match reroute {
+                Some((k, p)) => {
+                    let mut walk = walks[j][..=idx[j]].to_vec();
+                    walk.extend(p.into_iter().skip(1));
+                    walk.extend(rest.into_iter().skip(k + 1));
+                    walks[j] = walk;
+                }
+                None => {
+                    deferred.extend(
+                        rest.iter()
+                            .copied()
+                            .filter(|&v| in_set[v] && !self.imaged[v]),
+                    );
+                    walks[j].truncate(idx[j] + 1);
+                }
+            }
+        }
+        // Mop-up, one vertex at a time.
+        deferred.extend(roadmaps.unreachable);
+        deferred.extend(child_set.iter().copied().filter(|&c| !self.imaged[c]));
+        deferred.sort_unstable();
+        deferred.dedup();
+        for c in deferred {
+            if self.imaged[c] || n == 0 {
+                continue;
+            }
+            if let Some(j) = self.mop_up(parent, c)? {
+                self.imaged[c] = true;
+                imaged_here.push(c);
+                if let Some(last) = self.frames.last_mut() {
+                    last.grabs.push((j, c));
+                }
+            }
+        }
+        Ok(imaged_here)
+    }
+
+    /// Brings the nearest child to `c`, clears its view, and returns the child's index if it
+    /// can grab there.
+    fn mop_up(&mut self, parent: Vertex, c: Vertex) -> Result<Option<usize>, PlanError> {
+        let n = self.pos.len() - 1;
+        if self.occupied_by_other(usize::MAX, c) && self.pos[0] == c {
+            return Ok(None);
+        }
+        let chosen = (1..=n)
+            .filter_map(|r| {
+                self.map
+                    .path_to(
+                        self.pos[r],
+                        |v| v == c,
+                        |v| v != parent && !self.occupied_by_other(r, v),
+                    )
+                    .map(|p| (p.len(), r))
+            })
+            .min();
+        let Some((_, robot)) = chosen else {
+            return Ok(None);
+        };
+        self.walk_alone(robot, Phase::Mapping, |v| v == c, |v| v != parent)?;
+        for other in 1..=n {
+            if other != robot
+                && in_view(
+                    self.map,
+                    self.params,
+                    c,
+                    self.pos[other],
+                    self.params.child_radius_m,
+                )
+            {
+                let (map, params) = (self.map, self.params);
+                if self
+                    .walk_alone(
+                        other,
+                        Phase::Mapping,
+                        |v| !in_view(map, params, c, v, params.child_radius_m) && v != c,
+                        |v| v != parent,
+                    )
+                    .is_err()
+                {
+                    return Ok(None);
+                }
+            }
+        }
+        if self.view_blocked(robot, c) {
+            return Ok(None);
+        }
+        if self.frames.last().is_none_or(|f| f.positions != self.pos) {
+            self.push(Phase::Mapping, Vec::new());
+        }
+        Ok(Some(robot - 1))
+    }
+}
+
+/// Plans and executes the whole mission for a map, with the parent starting on
+/// `parent_start` and the children on `child_starts` (or, if empty, on the free vertices
+/// nearest the parent).
+pub fn plan(
+    map: &Map,
+    params: &CoverageParams,
+    parent_start: Vertex,
+    child_starts: &[Vertex],
+) -> Result<Plan, PlanError> {
+    let vis = Visibility::compute(map, params);
+    plan_with(map, params, &vis, parent_start, child_starts)
+}
+
+/// [`plan`] with precomputed visibility.
+pub fn plan_with(
+    map: &Map,
+    params: &CoverageParams,
+    vis: &Visibility,
+    parent_start: Vertex,
+    child_starts: &[Vertex],
+) -> Result<Plan, PlanError> {
+    if parent_start >= map.len() || !map.is_free(parent_start) {
+        return Err(PlanError::BadStart(parent_start));
+    }
+    let mut start = vec![parent_start];
+    if child_starts.is_empty() {
+        let dist = map.distances(parent_start, |_| true);
+        // Nearest first, but never in a dead end (a child there could be shut in by the
+        // parent).
+        let mut near: Vec<Vertex> = map
+            .vertices()
+            .into_iter()
+            .filter(|&v| {
+                v != parent_start && dist[v] != usize::MAX && map.neighbours(v).count() >= 2
+            })
+            .collect();
+        near.sort_by_key(|&v| (dist[v], v));
+        start.extend(near.into_iter().take(params.children));
+    } else {
+        start.extend_from_slice(child_starts);
+    }
+    for (k, &s) in start.iter().enumerate() {
+        if s >= map.len() || !map.is_free(s) {
+            return Err(PlanError::BadStart(s));
+        }
+        if start[..k].contains(&s) {
+            return Err(PlanError::SharedStart(s));
+        }
+    }
+    let selection = select_parent_vertices(map, vis, params);
+    // Parent vertices the parent cannot reach (another free-space component) are dropped:
+    // what only they could see is reported as uncoverable.
+    let (order, _unreachable_parents) = tour(map, &selection.chosen, parent_start);
+    let mut is_parent = vec![false; map.len()];
+    for &p in &order {
+        is_parent[p] = true;
+    }
+    let mut run = Run {
+        map,
+        params,
+        vis,
+        pos: start.clone(),
+        frames: Vec::new(),
+        imaged: vec![false; map.len()],
+        robot_steps: 0,
+        stage: 0,
+    };
+    let mut child_sets = Vec::new();
+    let mut following_behaviours = 0;
+    let mut skipped_stages = Vec::new();
+    for (t, &vp) in order.iter().enumerate() {
+        run.stage = t;
+        match run.transition(vp) {
+            Ok(true) => following_behaviours += 1,
+            Ok(false) => {}
+            Err(_) => {
+                // Every step made so far was legal; the team simply stays where it got to
+                // and later stages pick up this stage's vertices.
+                skipped_stages.push(t);
+                child_sets.push(Vec::new());
+                continue;
+            }
+        }
+        let set: Vec<Vertex> = vis.los_free[vp]
+            .iter()
+            .copied()
+            .filter(|&v| !is_parent[v] && !run.imaged[v])
+            .collect();
+        child_sets.push(run.map_stage(&set)?);
+    }
+    let mut seen = vec![false; map.len()];
+    for v in map.vertices() {
+        for &w in &vis.los_free[v] {
+            seen[w] = true;
+        }
+    }
+    let (unreached, uncoverable): (Vec<Vertex>, Vec<Vertex>) = map
+        .vertices()
+        .into_iter()
+        .filter(|&v| !is_parent[v] && !run.imaged[v])
+        .partition(|&v| seen[v]);
+    let mapping_timesteps = run
+        .frames
+        .iter()
+        .filter(|f| f.phase == Phase::Mapping)
+        .count();
+    let coordination_timesteps = run.frames.len() - mapping_timesteps;
+    Ok(Plan {
+        vertices: map.vertices().len(),
+        parent_vertices: order,
+        child_sets,
+        uncoverable,
+        unreached,
+        skipped_stages,
+        start,
+        mapping_timesteps,
+        coordination_timesteps,
+        following_behaviours,
+        robot_steps: run.robot_steps,
+        frames: run.frames,
+    })
+}

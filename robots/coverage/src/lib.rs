@@ -1,0 +1,97 @@
+//! Cooperative coverage mapping by a parent robot and N child robots (seed
+//! `002_4e4d2d7b10a09d98`, Section IV).
+//!
+//! From an occupancy grid: the vertex set V (centres of free `d x d` cells), line of sight
+//! LOS and LOS_free (Eqs. 1-2, [`visibility`]), the greedy choice of parent vertices with
+//! weights `(9 - n(v))^2` and scores (Eqs. 5-7) and their nearest-neighbour tour over
+//! geodesic distances ([`select`]), the child roadmaps of each stage with start points, goal
+//! points, paths, hilling and branching ([`roadmap`]), and the execution of the whole mission
+//! at the grid level, timestep by timestep, with stage transitions through H (Eq. 8) or the
+//! following behaviour ([`execute`]). [`validate`] re-checks a plan's invariants from its
+//! schedule alone.
+//!
+//! Every decision the paper leaves open is stated in the module that makes it and listed in
+//! the repository README ("Coverage planning decisions").
+
+pub mod execute;
+pub mod map;
+pub mod roadmap;
+pub mod select;
+pub mod validate;
+pub mod visibility;
+
+pub use execute::{plan, plan_with, Frame, Phase, Plan, PlanError};
+pub use map::{Map, Vertex};
+pub use validate::validate;
+pub use visibility::Visibility;
+
+use serde::{Deserialize, Serialize};
+
+/// The direction all images are taken in (the "direction of mapping").
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Direction {
+    /// +x (the paper's choice).
+    East,
+    /// +y.
+    North,
+    /// -x.
+    West,
+    /// -y.
+    South,
+}
+
+impl Direction {
+    /// Unit vector in grid axes (columns east, rows north).
+    pub fn unit(self) -> (f64, f64) {
+        match self {
+            Direction::East => (1.0, 0.0),
+            Direction::North => (0.0, 1.0),
+            Direction::West => (-1.0, 0.0),
+            Direction::South => (0.0, -1.0),
+        }
+    }
+
+    /// Integer unit vector in grid axes.
+    pub fn step(self) -> (i64, i64) {
+        match self {
+            Direction::East => (1, 0),
+            Direction::North => (0, 1),
+            Direction::West => (-1, 0),
+            Direction::South => (0, -1),
+        }
+    }
+}
+
+/// Parameters of the team and the mapping.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct CoverageParams {
+    /// The parent's line-of-sight radius r_los, metres (2.0 in the seed).
+    pub r_los_m: f64,
+    /// Direction of mapping.
+    pub direction: Direction,
+    /// The children's camera opening angle, degrees (80 in the seed).
+    pub child_fov_deg: f64,
+    /// Radius of the parent's footprint, metres.
+    pub parent_radius_m: f64,
+    /// Radius of a child's footprint, metres (0.06 for a c't-Bot).
+    pub child_radius_m: f64,
+    /// Number of child robots N.
+    pub children: usize,
+    /// Candidate distance f as a multiple of r_los (Eq. 6; 2 in the seed).
+    pub f_factor: f64,
+}
+
+impl Default for CoverageParams {
+    fn default() -> Self {
+        Self {
+            r_los_m: 2.0,
+            direction: Direction::East,
+            child_fov_deg: 80.0,
+            parent_radius_m: 0.225,
+            child_radius_m: 0.06,
+            children: 3,
+            f_factor: 2.0,
+        }
+    }
+}

@@ -1,0 +1,276 @@
+//! Child roadmap graphs of one stage (Section IV.C, Fig. 2).
+//!
+//! For the child vertices C of a stage, with the parent standing on `v_p`:
+//! * **Start points** are taken from C against the direction of mapping (sorted by their
+//!   coordinate along it, then across it), skipping any candidate that would be in the view
+//!   of an accepted start or have one in its own view, so that no start obstructs another.
+//! * **Goal points** lie in C no further back than their start along the direction of
+//!   mapping; the first is the most advanced, each next one maximises its smallest distance
+//!   to the goals already chosen (spread).
+//! * **Paths** are shortest 4-connected paths from start to goal through the parent's line
+//!   of sight LOS(v_p) (where the parent can track a child), never through `v_p`; through
+//!   any free vertex only if LOS(v_p) does not connect them.
+//! * **Extension**, one step per child in turn (the graphs grow in parallel) until C is
+//!   covered: *hilling* replaces an edge `a -> b` by `a -> a' -> b' -> b` where `a'`, `b'`
+//!   are uncovered child vertices beside it; when no child can hill, the first one that can
+//!   *branches out* to an uncovered neighbour `c` of a vertex `u` of its walk (`u -> c -> u`),
+//!   which later hilling widens. Vertices no walk touches are reached by the shortest detour
+//!   out and back from the nearest walk vertex.
+//! * Children not given a start point (fewer starts than children) stay where they are.
+//! * A child's walk begins where it stands, goes to its start point, then follows its graph.
+
+use crate::map::{Map, Vertex};
+use crate::visibility::in_view;
+use crate::CoverageParams;
+
+/// The walks of all children for one stage, and the child vertices no walk can reach.
+#[derive(Clone, Debug, PartialEq)]
+pub struct StageRoadmaps {
+    /// `walks[j]` starts at child `j`'s position; consecutive vertices are adjacent.
+    pub walks: Vec<Vec<Vertex>>,
+    /// Child vertices no walk reaches.
+    pub unreachable: Vec<Vertex>,
+}
+
+fn along(map: &Map, params: &CoverageParams, v: Vertex) -> (i64, i64) {
+    let (c, r) = map.cell(v);
+    let (dx, dy) = params.direction.step();
+    (
+        dx * c as i64 + dy * r as i64,
+        -dy * c as i64 + dx * r as i64,
+    )
+}
+
+/// Builds the walks of one stage.
+pub fn stage_roadmaps(
+    map: &Map,
+    params: &CoverageParams,
+    los_parent: &[bool],
+    parent: Vertex,
+    children: &[Vertex],
+    child_set: &[Vertex],
+) -> StageRoadmaps {
+    let in_set = {
+        let mut s = vec![false; map.len()];
+        for &c in child_set {
+            s[c] = true;
+        }
+        s
+    };
+    let region = |v: Vertex| v != parent && los_parent[v];
+    let anywhere = |v: Vertex| v != parent;
+    let path = |from: Vertex, to: Vertex| {
+        map.path_to(from, |v| v == to, region)
+            .or_else(|| map.path_to(from, |v| v == to, anywhere))
+    };
+
+    // Start points, against the direction of mapping.
+    let mut candidates = child_set.to_vec();
+    candidates.sort_by_key(|&v| (along(map, params, v), v));
+    let mut starts: Vec<Vertex> = Vec::new();
+    for &s in &candidates {
+        if starts.len() == params.children.min(children.len()) {
+            break;
+        }
+        let clear = starts.iter().all(|&o| {
+            !in_view(map, params, s, o, params.child_radius_m)
+                && !in_view(map, params, o, s, params.child_radius_m)
+        });
+        if clear {
+            starts.push(s);
+        }
+    }
+    // Assign starts to children: each start, in order, to the nearest free child.
+    let mut owner: Vec<Option<usize>> = vec![None; starts.len()];
+    let mut taken = vec![false; children.len()];
+    for (k, &s) in starts.iter().enumerate() {
+        let dist = map.distances(s, anywhere);
+        if let Some(j) = (0..children.len())
+            .filter(|&j| !taken[j])
+            .min_by_key(|&j| (dist[children[j]], j))
+        {
+            taken[j] = true;
+            owner[k] = Some(j);
+        }
+    }
+    // Goals, in the direction of mapping, spread out.
+    let mut goals: Vec<Vertex> = Vec::new();
+    for &s in &starts {
+        let ahead: Vec<Vertex> = child_set
+            .iter()
+            .copied()
+            .filter(|&g| along(map, params, g).0 >= along(map, params, s).0 && !goals.contains(&g))
+            .collect();
+        let goal = if goals.is_empty() {
+            ahead
+                .iter()
+                .copied()
+                .max_by_key(|&g| (along(map, params, g).0, std::cmp::Reverse(g)))
+        } else {
+            ahead.iter().copied().max_by(|&a, &b| {
+                let spread = |g: Vertex| {
+                    goals
+                        .iter()
+                        .map(|&o| map.distance_m(g, o))
+                        .fold(f64::INFINITY, f64::min)
+                };
+                spread(a).total_cmp(&spread(b)).then(b.cmp(&a))
+            })
+        };
+        goals.push(goal.unwrap_or(s));
+    }
+    // Initial graphs: start -> goal.
+    let mut covered = vec![false; map.len()];
+    let mut routes: Vec<Vec<Vertex>> = Vec::new();
+    for (k, &s) in starts.iter().enumerate() {
+        let route = path(s, goals[k]).unwrap_or_else(|| vec![s]);
+        for &v in &route {
+            covered[v] = true;
+        }
+        routes.push(route);
+    }
+    let uncovered = |covered: &Vec<bool>| child_set.iter().any(|&c| !covered[c]);
+    let open = |v: Vertex, covered: &Vec<bool>| in_set[v] && !covered[v] && v != parent;
+    let mut unreachable = Vec::new();
+    while !routes.is_empty() && uncovered(&covered) {
+        // Hilling, one step per child in turn.
+        let mut grew = false;
+        for route in routes.iter_mut() {
+            if let Some((i, a2, b2)) = hill(map, route, |v| open(v, &covered)) {
+                route.splice(i + 1..i + 1, [a2, b2]);
+                covered[a2] = true;
+                covered[b2] = true;
+                grew = true;
+            }
+        }
+        if grew {
+            continue;
+        }
+        // Branch out to a neighbour (first child that can).
+        let mut branched = false;
+        for route in routes.iter_mut() {
+            let found = route.iter().enumerate().find_map(|(i, &u)| {
+                map.neighbours(u)
+                    .find(|&c| open(c, &covered))
+                    .map(|c| (i, u, c))
+            });
+            if let Some((i, u, c)) = found {
+                route.splice(i + 1..i + 1, [c, u]);
+                covered[c] = true;
+                branched = true;
+                break;
+            }
+        }
+        if branched {
+            continue;
+        }
+        // A detour out and back to the nearest uncovered child vertex.
+        let target = child_set
+            .iter()
+            .copied()
+            .find(|&c| !covered[c])
+            .expect("some vertex is uncovered");
+        let dist = map.distances(target, region);
+        let best = routes
+            .iter()
+            .enumerate()
+            .flat_map(|(k, r)| r.iter().enumerate().map(move |(i, &u)| (k, i, u)))
+            .filter(|&(_, _, u)| dist[u] != usize::MAX)
+            .min_by_key(|&(k, i, u)| (dist[u], k, i));
+        match best.and_then(|(k, i, u)| map.path_to(u, |v| v == target, region).map(|p| (k, i, p)))
+        {
+            Some((k, i, p)) => {
+                let mut detour: Vec<Vertex> = p[1..].to_vec();
+                detour.extend(p[..p.len() - 1].iter().rev());
+                for &v in &detour {
+                    covered[v] = true;
+                }
+                routes[k].splice(i + 1..i + 1, detour);
+            }
+            None => {
+                covered[target] = true;
+                unreachable.push(target);
+            }
+        }
+    }
+    let mut walks: Vec<Vec<Vertex>> = children.iter().map(|&c| vec![c]).collect();
+    for (k, route) in routes.into_iter().enumerate() {
+        // A child cut off from its start point (the parent stands in the way) gets no graph;
+        // the vertices only that graph touched are left to the mop-up.
+        if let Some(j) = owner[k] {
+            if let Some(mut walk) = path(children[j], route[0]) {
+                walk.extend(route.into_iter().skip(1));
+                walks[j] = walk;
+            }
+        }
+    }
+    // Anything in C left untouched by every walk (no start could be placed) is unreachable.
+    let mut touched = vec![false; map.len()];
+    for w in &walks {
+        for &v in w {
+            touched[v] = true;
+        }
+    }
+    for &c in child_set {
+        if !touched[c] && !unreachable.contains(&c) {
+            unreachable.push(c);
+        }
+    }
+    unreachable.sort_unstable();
+    StageRoadmaps { walks, unreachable }
+}
+
+/// The first edge `a -> b` of `route` with two open vertices `a'`, `b'` beside it (left
+/// side first): returns the edge's index and `a'`, `b'`.
+fn hill(
+    map: &Map,
+    route: &[Vertex],
+    open: impl Fn(Vertex) -> bool,
+) -> Option<(usize, Vertex, Vertex)> {
+    for i in 0..route.len().saturating_sub(1) {
+        let (a, b) = (route[i], route[i + 1]);
+        let ((ac, ar), (bc, br)) = (map.cell(a), map.cell(b));
+        let (dc, dr) = (bc as i64 - ac as i64, br as i64 - ar as i64);
+        for (sc, sr) in [(-dr, dc), (dr, -dc)] {
+            let a2 = map.at(ac as i64 + sc, ar as i64 + sr);
+            let b2 = map.at(bc as i64 + sc, br as i64 + sr);
+            if let (Some(a2), Some(b2)) = (a2, b2) {
+                if map.is_free(a2) && map.is_free(b2) && open(a2) && open(b2) {
+                    return Some((i, a2, b2));
+                }
+            }
+        }
+    }
+    None
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn hilling_winds_a_path_over_a_block() {
+        let map = Map::from_text(&["....", "....", "...."], 0.5);
+        let params = CoverageParams {
+            children: 1,
+            ..CoverageParams::default()
+        };
+        let all: Vec<Vertex> = map.vertices();
+        let los = vec![true; map.len()];
+        // Parent off the map's vertex set: use a vertex that is not in C.
+        let parent = map.at(3, 2).unwrap();
+        let set: Vec<Vertex> = all.iter().copied().filter(|&v| v != parent).collect();
+        let r = stage_roadmaps(&map, &params, &los, parent, &[map.at(0, 0).unwrap()], &set);
+        assert!(r.unreachable.is_empty());
+        let walk = &r.walks[0];
+        for w in walk.windows(2) {
+            assert!(map.adjacent(w[0], w[1]));
+            assert_ne!(w[1], parent);
+        }
+        for &c in &set {
+            assert!(walk.contains(&c), "{c} not covered");
+        }
+        // 11 child vertices; hilling keeps revisits low.
+        assert!(walk.len() <= 16, "walk of {} vertices", walk.len());
+    }
+}

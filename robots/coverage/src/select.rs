@@ -1,0 +1,171 @@
+//! Choosing the parent vertices V_p (Eqs. 5-7) and the order they are visited in.
+//!
+//! Decisions:
+//! * `n(v)` is the number of free vertices among the 8 cells around `v` (0..=8), so the
+//!   specific weight `w_s(v) = (9 - n(v))^2` ranges over 1..=81.
+//! * Scores count only vertices still to be covered: after each choice, every vertex that
+//!   became covered (or became a parent vertex) has its `w_s` removed from the score of every
+//!   `v` whose LOS_free contains it. Otherwise the greedy choice would keep picking the same
+//!   crowded area.
+//! * Eq. 6 reads "for all v_p"; taken literally the candidate set is empty as soon as two
+//!   chosen vertices are more than f apart. We read it as "within f of some chosen parent
+//!   vertex", which keeps the growing cover contiguous as the text intends. Only candidates
+//!   that would cover something new are considered; when none lies within f (a gap closed
+//!   off by obstacles), the whole map is searched.
+//! * Ties in the score go to the lowest vertex index (south-west first, row by row).
+//! * Vertices that no vertex's LOS_free contains cannot be imaged by any parent placement.
+//!   They are not turned into parent vertices to make the loop end; selection stops when no
+//!   candidate covers anything new, and they are reported as uncoverable.
+//! * The tour is nearest neighbour by geodesic (4-connected step) distance, computed by a
+//!   breadth-first distance transform from each parent vertex, starting from the parent
+//!   vertex nearest to where the parent robot stands; ties to the lowest index.
+
+use crate::map::{Map, Vertex};
+use crate::visibility::Visibility;
+use crate::CoverageParams;
+
+/// The greedy selection, in the order vertices were chosen, and the vertices it cannot
+/// cover.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Selection {
+    /// V_p in selection order.
+    pub chosen: Vec<Vertex>,
+    /// Vertices of V that are neither parent vertices nor in any parent vertex's LOS_free.
+    pub uncoverable: Vec<Vertex>,
+}
+
+/// Runs the greedy choice of parent vertices.
+pub fn select_parent_vertices(map: &Map, vis: &Visibility, params: &CoverageParams) -> Selection {
+    let vertices = map.vertices();
+    let specific: Vec<u64> = (0..map.len())
+        .map(|v| (9 - map.free_8_neighbours(v) as u64).pow(2))
+        .collect();
+    // reverse[l]: the vertices v whose LOS_free contains l.
+    let mut reverse: Vec<Vec<Vertex>> = vec![Vec::new(); map.len()];
+    for &v in &vertices {
+        for &l in &vis.los_free[v] {
+            reverse[l].push(v);
+        }
+    }
+    let mut score: Vec<u64> = vec![0; map.len()];
+    for &v in &vertices {
+        score[v] = vis.los_free[v].iter().map(|&l| specific[l]).sum();
+    }
+    let mut done = vec![false; map.len()]; // covered, or a parent vertex
+    let mut is_parent = vec![false; map.len()];
+    let mut near = vec![false; map.len()]; // within f of a chosen parent vertex
+    let f = params.f_factor * params.r_los_m;
+    let mut remaining = vertices.len();
+    let mut chosen = Vec::new();
+    let retire = |l: Vertex, done: &mut Vec<bool>, score: &mut Vec<u64>, remaining: &mut usize| {
+        if !done[l] {
+            done[l] = true;
+            *remaining -= 1;
+            for &v in &reverse[l] {
+                score[v] -= specific[l];
+            }
+        }
+    };
+    while remaining > 0 {
+        let best = |restrict: bool| {
+            vertices
+                .iter()
+                .copied()
+                .filter(|&v| !is_parent[v] && score[v] > 0 && (!restrict || near[v]))
+                .max_by(|&a, &b| score[a].cmp(&score[b]).then(b.cmp(&a)))
+        };
+        let Some(p) = best(!chosen.is_empty()).or_else(|| best(false)) else {
+            break;
+        };
+        is_parent[p] = true;
+        chosen.push(p);
+        retire(p, &mut done, &mut score, &mut remaining);
+        for &l in &vis.los_free[p] {
+            retire(l, &mut done, &mut score, &mut remaining);
+        }
+        for &v in &vertices {
+            if !near[v] && map.distance_m(v, p) <= f + 1e-9 {
+                near[v] = true;
+            }
+        }
+    }
+    let uncoverable = vertices.into_iter().filter(|&v| !done[v]).collect();
+    Selection {
+        chosen,
+        uncoverable,
+    }
+}
+
+/// Orders parent vertices into a nearest-neighbour tour from the one geodesically nearest
+/// to `start`. Parent vertices that cannot be reached from `start` are left out and returned
+/// second.
+pub fn tour(map: &Map, chosen: &[Vertex], start: Vertex) -> (Vec<Vertex>, Vec<Vertex>) {
+    let mut left: Vec<Vertex> = chosen.to_vec();
+    left.sort_unstable();
+    let mut order = Vec::with_capacity(left.len());
+    let mut here = start;
+    loop {
+        let dist = map.distances(here, |_| true);
+        let next = left
+            .iter()
+            .enumerate()
+            .filter(|(_, &v)| dist[v] != usize::MAX)
+            .min_by_key(|(_, &v)| (dist[v], v))
+            .map(|(i, _)| i);
+        let Some(i) = next else { break };
+        here = left.remove(i);
+        order.push(here);
+    }
+    (order, left)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::Direction;
+
+    #[test]
+    fn an_open_room_is_covered_and_the_tour_visits_every_parent_vertex() {
+        let rows: Vec<String> = (0..12).map(|_| ".".repeat(16)).collect();
+        let refs: Vec<&str> = rows.iter().map(String::as_str).collect();
+        let map = Map::from_text(&refs, 0.5);
+        let params = CoverageParams {
+            direction: Direction::East,
+            ..CoverageParams::default()
+        };
+        let vis = Visibility::compute(&map, &params);
+        let sel = select_parent_vertices(&map, &vis, &params);
+        assert!(sel.uncoverable.is_empty());
+        let mut covered = vec![false; map.len()];
+        for &p in &sel.chosen {
+            covered[p] = true;
+            for &l in &vis.los_free[p] {
+                covered[l] = true;
+            }
+        }
+        assert!(map.vertices().iter().all(|&v| covered[v]));
+        // Each choice added something new.
+        assert!(
+            sel.chosen.len() < map.vertices().len() / 10,
+            "{} parent vertices",
+            sel.chosen.len()
+        );
+        let (order, unreachable) = tour(&map, &sel.chosen, 0);
+        assert!(unreachable.is_empty());
+        let mut sorted = order.clone();
+        sorted.sort_unstable();
+        let mut expected = sel.chosen.clone();
+        expected.sort_unstable();
+        assert_eq!(sorted, expected);
+    }
+
+    #[test]
+    fn a_vertex_nobody_can_see_is_reported() {
+        // (0,1) is walled in on every side: no vertex has it in line of sight.
+        let map = Map::from_text(&["##....", ".#....", "##...."], 0.5);
+        let params = CoverageParams::default();
+        let vis = Visibility::compute(&map, &params);
+        let sel = select_parent_vertices(&map, &vis, &params);
+        assert_eq!(sel.uncoverable, vec![map.at(0, 1).unwrap()]);
+    }
+}

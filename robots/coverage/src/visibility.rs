@@ -1,0 +1,213 @@
+//! Line of sight on the grid, the robots' view cones, and the sets LOS(v) and LOS_free(v)
+//! (Eqs. 1-2 of seed 002).
+//!
+//! Decisions (see also the README):
+//! * **Symmetric LOS.** Two vertices see each other when the straight segment between their
+//!   cell centres touches no occupied cell. The cells are found exactly, in integer
+//!   arithmetic, and a segment passing exactly through a cell corner counts as touching all
+//!   four cells there (so sight never squeezes between two obstacles that meet at a corner).
+//!   The set of cells depends only on the segment, not on its direction, so `LOS` is
+//!   symmetric (Bresenham's line is not).
+//! * **LOS radius.** `w ∈ LOS(v)` needs the centre distance `<= r_los`.
+//! * **View cone.** A child grabbing at `w` looks along the direction of mapping with an
+//!   opening angle `fov`. A robot at `u`, modelled as a disc of radius `ρ`, is in view when it
+//!   is within `r_los` of `w`, in line of sight of `w`, and the disc overlaps the cone:
+//!   `angle(u - w, direction) <= fov / 2 + asin(ρ / |u - w|)`. Beyond `r_los` a 12 cm robot
+//!   spans under 4 of the 120 pixels and is not counted.
+//! * **LOS_free(v)** is the set of `w ∈ LOS(v)` whose view does not contain the parent
+//!   standing on `v`.
+
+use crate::map::{Map, Vertex};
+use crate::CoverageParams;
+
+/// Whether the segment between the centres of `a` and `b` touches only free cells.
+pub fn line_of_sight(map: &Map, a: Vertex, b: Vertex) -> bool {
+    let ((ac, ar), (bc, br)) = (map.cell(a), map.cell(b));
+    // Scaled by 2: cell c spans [2c, 2c + 2], its centre is 2c + 1.
+    let (mut x0, mut y0, mut x1, mut y1) = (
+        2 * ac as i64 + 1,
+        2 * ar as i64 + 1,
+        2 * bc as i64 + 1,
+        2 * br as i64 + 1,
+    );
+    if x0 > x1 {
+        std::mem::swap(&mut x0, &mut x1);
+        std::mem::swap(&mut y0, &mut y1);
+    }
+    let (dx, dy) = (x1 - x0, y1 - y0);
+    let free = |c: i64, r: i64| map.at(c, r).is_some_and(|v| map.is_free(v));
+    if dx == 0 {
+        let c = (x0 - 1) / 2;
+        let (lo, hi) = ((y0.min(y1) - 1) / 2, (y0.max(y1) - 1) / 2);
+        return (lo..=hi).all(|r| free(c, r));
+    }
+    let floor_div = |a: i64, b: i64| a.div_euclid(b);
+    let ceil_div = |a: i64, b: i64| -((-a).div_euclid(b));
+    for c in (x0 - 1) / 2..=(x1 - 1) / 2 {
+        let (xl, xr) = (x0.max(2 * c), x1.min(2 * c + 2));
+        // y * dx at both ends of this column's part of the segment (exact).
+        let ya = y0 * dx + dy * (xl - x0);
+        let yb = y0 * dx + dy * (xr - x0);
+        let (lo, hi) = (ya.min(yb), ya.max(yb));
+        // Rows r whose closed span [2r, 2r + 2] meets [lo, hi] / dx.
+        let r_min = ceil_div(lo - 2 * dx, 2 * dx);
+        let r_max = floor_div(hi, 2 * dx);
+        if !(r_min..=r_max).all(|r| free(c, r)) {
+            return false;
+        }
+    }
+    true
+}
+
+/// Whether a robot of radius `radius_m` at `u` is in the view of a child grabbing at `w`.
+pub fn in_view(map: &Map, params: &CoverageParams, w: Vertex, u: Vertex, radius_m: f64) -> bool {
+    if w == u {
+        return true;
+    }
+    let d = map.distance_m(w, u);
+    if d > params.r_los_m + 1e-9 {
+        return false;
+    }
+    let ((wc, wr), (uc, ur)) = (map.cell(w), map.cell(u));
+    let (vx, vy) = (uc as f64 - wc as f64, ur as f64 - wr as f64);
+    let (dx, dy) = params.direction.unit();
+    let cos = (vx * dx + vy * dy) / vx.hypot(vy);
+    let angle = cos.clamp(-1.0, 1.0).acos();
+    let half = params.child_fov_deg.to_radians() / 2.0;
+    let widen = (radius_m / d).min(1.0).asin();
+    angle <= half + widen + 1e-12 && line_of_sight(map, w, u)
+}
+
+/// LOS(v) and LOS_free(v) for every vertex.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Visibility {
+    /// `los[v]`: vertices in line of sight of `v` within `r_los`, ascending, `v` excluded.
+    pub los: Vec<Vec<Vertex>>,
+    /// `los_free[v]`: the part of `los[v]` whose view does not contain a parent on `v`.
+    pub los_free: Vec<Vec<Vertex>>,
+}
+
+impl Visibility {
+    /// Computes both sets for all free vertices.
+    pub fn compute(map: &Map, params: &CoverageParams) -> Self {
+        let reach = (params.r_los_m / map.cell_m + 1e-9).floor() as i64;
+        let mut offsets = Vec::new();
+        for dr in -reach..=reach {
+            for dc in -reach..=reach {
+                let d = (dc as f64).hypot(dr as f64) * map.cell_m;
+                if (dc, dr) != (0, 0) && d <= params.r_los_m + 1e-9 {
+                    offsets.push((dc, dr));
+                }
+            }
+        }
+        let mut los = vec![Vec::new(); map.len()];
+        let mut los_free = vec![Vec::new(); map.len()];
+        for v in map.vertices() {
+            let (c, r) = map.cell(v);
+            let mut seen: Vec<Vertex> = offsets
+                .iter()
+                .filter_map(|(dc, dr)| map.at(c as i64 + dc, r as i64 + dr))
+                .filter(|&w| map.is_free(w) && line_of_sight(map, v, w))
+                .collect();
+            seen.sort_unstable();
+            los_free[v] = seen
+                .iter()
+                .copied()
+                .filter(|&w| !in_view(map, params, w, v, params.parent_radius_m))
+                .collect();
+            los[v] = seen;
+        }
+        Self { los, los_free }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::Direction;
+
+    fn params() -> CoverageParams {
+        CoverageParams {
+            r_los_m: 2.0,
+            direction: Direction::East,
+            child_fov_deg: 80.0,
+            parent_radius_m: 0.2,
+            child_radius_m: 0.06,
+            children: 3,
+            f_factor: 2.0,
+        }
+    }
+
+    #[test]
+    fn sight_is_blocked_by_obstacles_and_by_corners() {
+        let m = Map::from_text(&["....", ".#..", "....", "...."], 1.0);
+        let v = |c, r| m.at(c, r).unwrap();
+        assert!(
+            !line_of_sight(&m, v(0, 2), v(2, 2)),
+            "straight through the obstacle"
+        );
+        assert!(line_of_sight(&m, v(0, 0), v(3, 0)));
+        assert!(
+            !line_of_sight(&m, v(0, 3), v(2, 1)),
+            "the diagonal passes the obstacle's corner"
+        );
+        let diag = Map::from_text(&["..", "#.", ".#"], 1.0);
+        let d = |c, r| diag.at(c, r).unwrap();
+        // Obstacles at (0,1) and (1,0) meet at a corner: (0,0) and (1,1) do not see each other.
+        assert!(!line_of_sight(&diag, d(0, 0), d(1, 1)));
+    }
+
+    #[test]
+    fn sight_is_symmetric_on_random_maps() {
+        use rand::{RngExt, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(9);
+        for _ in 0..50 {
+            let rows: Vec<String> = (0..12)
+                .map(|_| {
+                    (0..12)
+                        .map(|_| if rng.random::<f64>() < 0.25 { '#' } else { '.' })
+                        .collect()
+                })
+                .collect();
+            let refs: Vec<&str> = rows.iter().map(String::as_str).collect();
+            let m = Map::from_text(&refs, 0.5);
+            let free = m.vertices();
+            for &a in &free {
+                for &b in &free {
+                    assert_eq!(line_of_sight(&m, a, b), line_of_sight(&m, b, a));
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn los_free_drops_vertices_that_would_see_the_parent() {
+        let m = Map::from_text(
+            &[
+                ".........",
+                ".........",
+                ".........",
+                ".........",
+                ".........",
+            ],
+            0.5,
+        );
+        let vis = Visibility::compute(&m, &params());
+        let centre = m.at(4, 2).unwrap();
+        let west = m.at(2, 2).unwrap(); // looks east, straight at the parent
+        let east = m.at(6, 2).unwrap(); // parent behind it
+        let north = m.at(4, 4).unwrap(); // parent at 90 degrees
+        let north_west = m.at(2, 4).unwrap(); // parent at 45 deg from east: outside 40 deg, but its disc reaches in
+        for w in [west, east, north, north_west] {
+            assert!(vis.los[centre].contains(&w));
+        }
+        assert!(!vis.los_free[centre].contains(&west));
+        assert!(vis.los_free[centre].contains(&east));
+        assert!(vis.los_free[centre].contains(&north));
+        // 45 deg - 40 deg = 5 deg < asin(0.2 / 1.414) = 8.1 deg: the parent's disc is in view.
+        assert!(!vis.los_free[centre].contains(&north_west));
+        // Radius: (4,2) -> (0,2) is exactly 2 m.
+        assert!(vis.los[centre].contains(&m.at(0, 2).unwrap()));
+        assert!(!vis.los[centre].contains(&m.at(0, 3).unwrap()));
+    }
+}
