@@ -11,17 +11,19 @@ pub fn repo() -> PathBuf {
         .to_path_buf()
 }
 
-/// The `hetsim` binary of this build, built first if missing (`cargo test -p hetsim-tests`
-/// alone does not build other packages' binaries).
+/// The `hetsim` binary of this build. It is built (or brought up to date) once per test
+/// process: `cargo test -p hetsim-tests` alone does not build other packages' binaries, and
+/// a stale binary would test old code.
 pub fn hetsim_bin() -> PathBuf {
+    static BUILD: std::sync::Once = std::sync::Once::new();
     let exe = std::env::current_exe().expect("test executable path");
     // target/<profile>/deps/<test> -> target/<profile>/hetsim
     let profile_dir = exe
         .parent()
         .and_then(Path::parent)
-        .expect("target/<profile>");
-    let bin = profile_dir.join(format!("hetsim{}", std::env::consts::EXE_SUFFIX));
-    if !bin.is_file() {
+        .expect("target/<profile>")
+        .to_path_buf();
+    BUILD.call_once(|| {
         let release = profile_dir.file_name().is_some_and(|n| n == "release");
         let mut cmd = Command::new(env!("CARGO"));
         cmd.args(["build", "-q", "-p", "hetsim-cli"])
@@ -33,8 +35,8 @@ pub fn hetsim_bin() -> PathBuf {
             cmd.status().expect("cargo runs").success(),
             "building hetsim-cli failed"
         );
-    }
-    bin
+    });
+    profile_dir.join(format!("hetsim{}", std::env::consts::EXE_SUFFIX))
 }
 
 /// Runs `hetsim` with arguments and extra environment, in the repository root.

@@ -2,7 +2,7 @@
 
 use anyhow::{Context, Result};
 use clap::{Parser, Subcommand};
-use hetsim_engine::{run, write_run};
+use hetsim_engine::{regress, run, sweep, write_run};
 use hetsim_scene::{load_robot_model, load_scenario, LoadOptions};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use std::io::IsTerminal;
@@ -38,6 +38,31 @@ enum Cmd {
     Validate {
         /// Scenario files or robot files (robots/models/*.toml).
         files: Vec<PathBuf>,
+    },
+    /// Run a Monte Carlo sweep of coverage planning (grid level, no rendering), or
+    /// `hetsim sweep merge SWEEP.toml SHARD_DIR... --out DIR` to join shards.
+    Sweep {
+        /// The sweep file, or `merge`.
+        target: String,
+        /// With `merge`: the sweep file, then the shard folders.
+        more: Vec<PathBuf>,
+        /// Parallel runs (default: all cores).
+        #[arg(long)]
+        jobs: Option<usize>,
+        /// Output folder (default: results/runs/sweep-<name>).
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Run only shard K of N (1-based), e.g. `--shard 2/4`.
+        #[arg(long)]
+        shard: Option<String>,
+    },
+    /// Compare coverage planning on the indoor scenarios with results/baselines/*.json.
+    Regress {
+        /// Rewrite the baselines with today's values (keeps their tolerances).
+        #[arg(long)]
+        update: bool,
+        /// Scenarios (default: indoor-grid-0, -20, -40).
+        scenarios: Vec<String>,
     },
     /// Measure sim seconds per wall second (physics and ground truth only).
     Bench {
@@ -106,6 +131,43 @@ fn real_main() -> Result<()> {
                 println!("ok: {}", f.display());
             }
         }
+        Cmd::Sweep {
+            target,
+            more,
+            jobs,
+            out,
+            shard,
+        } => sweep(target, more, jobs, out, shard)?,
+        Cmd::Regress { update, scenarios } => {
+            let scenarios = if scenarios.is_empty() {
+                regress::DEFAULT_SCENARIOS
+                    .iter()
+                    .map(|s| s.to_string())
+                    .collect()
+            } else {
+                scenarios
+            };
+            let rows = regress::regress(std::path::Path::new("."), &scenarios, update)
+                .map_err(anyhow::Error::msg)?;
+            println!("| scenario | metric | baseline | now | allowed | |");
+            println!("|---|---|---|---|---|---|");
+            for r in &rows {
+                let status = if update {
+                    "updated"
+                } else if r.moved() {
+                    "MOVED"
+                } else {
+                    "ok"
+                };
+                println!(
+                    "| {} | {} | {} | {} | {} | {status} |",
+                    r.scenario, r.metric, r.baseline, r.now, r.allowed
+                );
+            }
+            let moved = rows.iter().filter(|r| r.moved()).count();
+            anyhow::ensure!(moved == 0, "{moved} metric(s) moved beyond their tolerance; if the change is intended, run `hetsim regress --update` and commit the baselines");
+            println!("regress: {} metrics within tolerance", rows.len());
+        }
         Cmd::Bench {
             scenarios,
             sim_secs,
@@ -134,6 +196,66 @@ fn real_main() -> Result<()> {
             }
         }
     }
+    Ok(())
+}
+
+fn sweep(
+    target: String,
+    more: Vec<PathBuf>,
+    jobs: Option<usize>,
+    out: Option<PathBuf>,
+    shard: Option<String>,
+) -> Result<()> {
+    let merging = target == "merge";
+    let (file, shards) = if merging {
+        let (f, rest) = more
+            .split_first()
+            .context("usage: hetsim sweep merge SWEEP.toml SHARD_DIR... --out DIR")?;
+        (f.clone(), rest.to_vec())
+    } else {
+        anyhow::ensure!(
+            more.is_empty(),
+            "unexpected arguments after the sweep file: {more:?}"
+        );
+        (PathBuf::from(&target), Vec::new())
+    };
+    let loaded = sweep::load_sweep(&file).map_err(anyhow::Error::msg)?;
+    let out = out.unwrap_or_else(|| {
+        PathBuf::from("results/runs").join(format!("sweep-{}", loaded.file.name))
+    });
+    let summary = if merging {
+        anyhow::ensure!(!shards.is_empty(), "name the shard folders to merge");
+        sweep::merge(&loaded, &out, &shards).map_err(anyhow::Error::msg)?
+    } else {
+        let shard = match shard {
+            None => (1, 1),
+            Some(s) => {
+                let parsed = s
+                    .split_once('/')
+                    .and_then(|(k, n)| Some((k.parse::<usize>().ok()?, n.parse::<usize>().ok()?)));
+                match parsed {
+                    Some((k, n)) if n >= 1 && (1..=n).contains(&k) => (k, n),
+                    _ => anyhow::bail!("--shard {s}: expected K/N with 1 <= K <= N, e.g. 2/4"),
+                }
+            }
+        };
+        let jobs =
+            jobs.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
+        let bar = progress_bar(&loaded.file.name);
+        let summary = sweep::run_sweep(&loaded, &out, jobs, shard, &|done, total| {
+            bar.set_length(total as u64);
+            bar.set_position(done as u64);
+        })
+        .map_err(anyhow::Error::msg)?;
+        bar.finish_and_clear();
+        summary
+    };
+    println!(
+        "{}",
+        std::fs::read_to_string(out.join("summary.md")).unwrap_or_default()
+    );
+    println!("finished: {} of {} runs", summary.finished, summary.total);
+    println!("results: {}", out.display());
     Ok(())
 }
 

@@ -10,9 +10,12 @@
 //! digest covers everything the run produced. Wall-clock timings are kept apart, in
 //! `timing.json`, and are not part of the digest.
 
+pub mod coverage;
 mod output;
+pub mod regress;
 mod run;
 mod stacks;
+pub mod sweep;
 
 pub use output::{write_run, RunFiles, WriteError};
 pub use run::{run, Metrics, RobotMetrics, RunResult};

@@ -54,6 +54,9 @@ pub struct Metrics {
     pub unreachable_vertices: Option<Vec<(usize, usize)>>,
     /// Number of buildings, walls and obstacles.
     pub solids: usize,
+    /// Indoor worlds with a `[coverage]` table: the grid-level coverage plan's figures.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub coverage: Option<crate::coverage::CoverageMetrics>,
 }
 
 /// Everything a run produced, before it is written.
@@ -219,5 +222,11 @@ fn metrics(
         free_vertices: grid.map(|g| g.grid.free_count()),
         unreachable_vertices: grid.map(|g| g.unreachable.clone()),
         solids: scenario.world.solids.len(),
+        coverage: scenario
+            .file
+            .coverage
+            .as_ref()
+            .and_then(|_| crate::coverage::plan_scenario(scenario).ok())
+            .map(|(_, _, plan)| crate::coverage::CoverageMetrics::of(&plan)),
     }
 }

@@ -17,12 +17,14 @@ pub mod world;
 
 pub use check::{field_name, Checker};
 pub use error::{FieldError, SceneError};
-pub use load::{load_robot_model, load_scenario, LoadOptions, ResolvedRobot, Scenario};
+pub use load::{
+    load_robot_model, load_scenario, load_scenario_text, LoadOptions, ResolvedRobot, Scenario,
+};
 pub use robot::{
     Body, DriveKind, Helicopter, Intrinsics, Mount, Pilot, RobotModel, Sensor, SteeringKind, Wheels,
 };
 pub use scenario::{
-    BoxSpec, IndoorSpec, MissionSpec, RobotSpec, ScenarioFile, Start, VillageSpec, WorldKind,
-    WorldSpec,
+    BoxSpec, CoverageSpec, IndoorSpec, MissionSpec, RobotSpec, ScenarioFile, Start, VillageSpec,
+    WorldKind, WorldSpec,
 };
 pub use source::{Source, SCHEMA_VERSION};

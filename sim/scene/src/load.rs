@@ -87,7 +87,22 @@ fn check_model_name(source: &Source, model: &RobotModel) -> Result<(), SceneErro
 
 /// Loads, validates and builds a scenario.
 pub fn load_scenario(path: &Path, options: &LoadOptions) -> Result<Scenario, SceneError> {
-    let source = Source::read(path)?;
+    load_source(Source::read(path)?, options)
+}
+
+/// Loads a scenario from `text` as if it were the file at `path` (relative paths resolve
+/// against `path`'s folder). Sweeps use it to apply their axes to a base scenario.
+pub fn load_scenario_text(
+    path: &Path,
+    text: String,
+    options: &LoadOptions,
+) -> Result<Scenario, SceneError> {
+    load_source(Source::from_text(path, text)?, options)
+}
+
+fn load_source(source: Source, options: &LoadOptions) -> Result<Scenario, SceneError> {
+    let path = source.path().to_path_buf();
+    let path = path.as_path();
     let file: ScenarioFile = source.parse()?;
     let c = Checker::new(&source);
     file.validate(&c)?;

@@ -32,6 +32,37 @@ pub struct ScenarioFile {
     pub world: WorldSpec,
     /// The robots, created in this order.
     pub robots: Vec<RobotSpec>,
+    /// Cooperative coverage mapping parameters (indoor worlds).
+    #[serde(default)]
+    pub coverage: Option<CoverageSpec>,
+}
+
+/// The `[coverage]` table: the parent/child team's mapping parameters (seed 002).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct CoverageSpec {
+    /// The parent's line-of-sight radius r_los, metres.
+    pub r_los_m: f64,
+    /// Direction of mapping: "east", "north", "west" or "south".
+    pub direction: String,
+    /// The children's camera opening angle, degrees.
+    pub child_fov_deg: f64,
+    /// Number of children N; `None` counts the scenario's c't-Bots.
+    pub children: Option<usize>,
+    /// Candidate distance f as a multiple of r_los (Eq. 6).
+    pub f_factor: f64,
+}
+
+impl Default for CoverageSpec {
+    fn default() -> Self {
+        Self {
+            r_los_m: 2.0,
+            direction: "east".to_string(),
+            child_fov_deg: 80.0,
+            children: None,
+            f_factor: 2.0,
+        }
+    }
 }
 
 fn default_models_dir() -> String {
@@ -349,6 +380,29 @@ impl ScenarioFile {
                     g.width_m / 2.0,
                     g.height_m / 2.0,
                 )?;
+            }
+        }
+        if let Some(cov) = &self.coverage {
+            let at = |f: &'static str| ["coverage", f];
+            if self.world.kind != WorldKind::IndoorGrid {
+                return Err(c.error_at(
+                    &["coverage"],
+                    "(table)",
+                    "a [coverage] table only in an indoor_grid world",
+                ));
+            }
+            c.range(&at("r_los_m"), cov.r_los_m, 0.1, 100.0)?;
+            c.range(&at("child_fov_deg"), cov.child_fov_deg, 1.0, 179.0)?;
+            c.range(&at("f_factor"), cov.f_factor, 0.5, 10.0)?;
+            if !["east", "north", "west", "south"].contains(&cov.direction.as_str()) {
+                return Err(c.error_at(
+                    &at("direction"),
+                    format!("\"{}\"", cov.direction),
+                    "one of \"east\", \"north\", \"west\", \"south\"",
+                ));
+            }
+            if let Some(n) = cov.children {
+                c.range(&at("children"), n as f64, 1.0, 32.0)?;
             }
         }
         if self.robots.is_empty() {

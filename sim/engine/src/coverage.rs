@@ -1,0 +1,124 @@
+//! Grid-level coverage planning of a scenario's parent/child team (seed 002, Section V.A).
+
+use hetsim_coverage::{plan, CoverageParams, Direction, Map, Plan, Vertex};
+use hetsim_scene::Scenario;
+use serde::Serialize;
+
+/// The figures of Tables I and II and Figs. 3 and 4, for one plan.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct CoverageMetrics {
+    /// |V|.
+    pub vertices: usize,
+    /// |V_p| = Q.
+    pub parent_vertices: usize,
+    /// Following behaviours executed.
+    pub following: usize,
+    /// Mapping timesteps.
+    pub mapping_timesteps: usize,
+    /// Coordination timesteps.
+    pub coordination_timesteps: usize,
+    /// Mapping plus coordination.
+    pub total_timesteps: usize,
+    /// Imaged fraction of V \ V_p.
+    pub coverage: f64,
+    /// Vertices no parent vertex sees freely.
+    pub uncoverable: usize,
+    /// Visible vertices the team could not reach.
+    pub unreached: usize,
+    /// Unit steps of all robots.
+    pub robot_steps: usize,
+}
+
+impl CoverageMetrics {
+    /// The metrics of a plan.
+    pub fn of(plan: &Plan) -> Self {
+        Self {
+            vertices: plan.vertices,
+            parent_vertices: plan.parent_vertices.len(),
+            following: plan.following_behaviours,
+            mapping_timesteps: plan.mapping_timesteps,
+            coordination_timesteps: plan.coordination_timesteps,
+            total_timesteps: plan.mapping_timesteps + plan.coordination_timesteps,
+            coverage: plan.coverage(),
+            uncoverable: plan.uncoverable.len(),
+            unreached: plan.unreached.len(),
+            robot_steps: plan.robot_steps,
+        }
+    }
+}
+
+/// Planning parameters from the scenario's `[coverage]` table and its robots.
+pub fn coverage_params(scenario: &Scenario) -> CoverageParams {
+    let spec = scenario.file.coverage.clone().unwrap_or_default();
+    let radius = |model: &str, default: f64| {
+        scenario
+            .robots
+            .iter()
+            .find(|r| r.spec.model == model)
+            .map_or(default, |r| {
+                r.model.body.length_m.max(r.model.body.width_m) / 2.0
+            })
+    };
+    let direction = match spec.direction.as_str() {
+        "north" => Direction::North,
+        "west" => Direction::West,
+        "south" => Direction::South,
+        _ => Direction::East,
+    };
+    CoverageParams {
+        r_los_m: spec.r_los_m,
+        direction,
+        child_fov_deg: spec.child_fov_deg,
+        parent_radius_m: radius("parent", 0.225),
+        child_radius_m: radius("ctbot", 0.06),
+        children: spec
+            .children
+            .unwrap_or_else(|| {
+                scenario
+                    .robots
+                    .iter()
+                    .filter(|r| r.spec.model == "ctbot")
+                    .count()
+            })
+            .max(1),
+        f_factor: spec.f_factor,
+    }
+}
+
+/// Plans the coverage mission of an indoor scenario on its ground-truth grid. The parent
+/// starts on the vertex under the scenario's `parent` robot (or the first robot); the
+/// children on their robots' vertices when the scenario places exactly N of them, else next
+/// to the parent.
+pub fn plan_scenario(scenario: &Scenario) -> Result<(Map, CoverageParams, Plan), String> {
+    let grid = &scenario
+        .world
+        .grid
+        .as_ref()
+        .ok_or("coverage planning needs an indoor_grid world")?
+        .grid;
+    let map = Map::from_grid(grid);
+    let params = coverage_params(scenario);
+    let vertex_of =
+        |x: f64, y: f64| -> Option<Vertex> { grid.cell_of(x, y).map(|(c, r)| r * grid.cols + c) };
+    let parent = scenario
+        .robots
+        .iter()
+        .find(|r| r.spec.model == "parent")
+        .or(scenario.robots.first())
+        .ok_or("no robots")?;
+    let parent_start = vertex_of(parent.spec.start.x, parent.spec.start.y)
+        .ok_or("the parent starts outside the grid")?;
+    let kids: Vec<Vertex> = scenario
+        .robots
+        .iter()
+        .filter(|r| r.spec.model == "ctbot")
+        .filter_map(|r| vertex_of(r.spec.start.x, r.spec.start.y))
+        .collect();
+    let child_starts = if kids.len() == params.children {
+        kids
+    } else {
+        Vec::new()
+    };
+    let plan = plan(&map, &params, parent_start, &child_starts).map_err(|e| e.to_string())?;
+    Ok((map, params, plan))
+}

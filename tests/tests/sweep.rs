@@ -1,0 +1,180 @@
+//! Sweeps give the same files whatever the job count, sharding or interruption; regression
+//! catches moved metrics.
+
+use hetsim_engine::regress::{regress, Baseline};
+use hetsim_engine::sweep::{load_sweep, merge, run_sweep};
+use hetsim_tests::{hetsim, repo};
+use std::path::Path;
+
+fn sweep_file(dir: &Path) -> std::path::PathBuf {
+    let path = dir.join("small.toml");
+    let base = repo().join("scenarios/lab.toml");
+    std::fs::write(
+        &path,
+        format!(
+            "schema_version = 1\nname = \"small\"\nbase = \"{}\"\nseeds = 3\n\n[axes]\n\"world.indoor.obstruction_ratio\" = [0.0, 0.1]\n\"coverage.children\" = [1, 2]\n",
+            base.display()
+        ),
+    )
+    .unwrap();
+    path
+}
+
+fn outputs(dir: &Path) -> Vec<String> {
+    ["runs.csv", "summary.csv", "summary.md"]
+        .iter()
+        .map(|f| std::fs::read_to_string(dir.join(f)).unwrap())
+        .collect()
+}
+
+#[test]
+fn jobs_shards_and_resuming_give_the_same_files() {
+    let tmp = tempfile::tempdir().unwrap();
+    let sweep = load_sweep(&sweep_file(tmp.path())).unwrap();
+    assert_eq!(sweep.runs.len(), 2 * 2 * 3);
+    let none = |_: usize, _: usize| {};
+    let one = tmp.path().join("jobs1");
+    let two = tmp.path().join("jobs2");
+    let s1 = run_sweep(&sweep, &one, 1, (1, 1), &none).unwrap();
+    run_sweep(&sweep, &two, 2, (1, 1), &none).unwrap();
+    assert_eq!(s1.finished, 12);
+    assert_eq!(outputs(&one), outputs(&two));
+    assert_eq!(
+        outputs(&one)[0].lines().count(),
+        13,
+        "header and one row per run"
+    );
+
+    let (a, b, merged) = (
+        tmp.path().join("shard1"),
+        tmp.path().join("shard2"),
+        tmp.path().join("merged"),
+    );
+    let part = run_sweep(&sweep, &a, 2, (1, 2), &none).unwrap();
+    assert_eq!(part.finished, 6);
+    run_sweep(&sweep, &b, 2, (2, 2), &none).unwrap();
+    merge(&sweep, &merged, &[a.clone(), b]).unwrap();
+    assert_eq!(outputs(&one), outputs(&merged));
+
+    // Resume: the first shard's rows are kept as they are (a doctored one proves it), the
+    // rest are run; a half-written temporary file left by a crash is ignored.
+    let row0 = a.join("rows/000000.csv");
+    let original = std::fs::read_to_string(&row0).unwrap();
+    let mut fields: Vec<String> = original.trim_end().split(',').map(str::to_string).collect();
+    let last = fields.len() - 1;
+    fields[last] = "123456".to_string();
+    std::fs::write(&row0, fields.join(",") + "\n").unwrap();
+    std::fs::write(a.join("rows/000001.tmp-99"), "half a ro").unwrap();
+    run_sweep(&sweep, &a, 2, (1, 1), &none).unwrap();
+    let resumed = outputs(&a);
+    assert!(
+        resumed[0].contains("123456"),
+        "finished rows are not redone"
+    );
+    std::fs::write(&row0, original).unwrap();
+    hetsim_engine::sweep::summarize(&sweep, &a).unwrap();
+    assert_eq!(outputs(&one), outputs(&a));
+}
+
+#[test]
+fn more_children_on_an_open_map_change_the_timesteps_and_cover_everything() {
+    let tmp = tempfile::tempdir().unwrap();
+    let sweep = load_sweep(&sweep_file(tmp.path())).unwrap();
+    let out = tmp.path().join("o");
+    let summary = run_sweep(&sweep, &out, 2, (1, 1), &|_, _| {}).unwrap();
+    for cell in &summary.cells {
+        let coverage = cell.stat("coverage").mean;
+        assert!(coverage > 0.95, "{:?}: coverage {coverage}", cell.values);
+        assert!(
+            cell.stat("parent_vertices").mean >= 1.0,
+            "{:?}: at least one parent vertex",
+            cell.values
+        );
+    }
+}
+
+#[test]
+fn bad_sweep_files_are_refused_with_the_place() {
+    let tmp = tempfile::tempdir().unwrap();
+    let path = tmp.path().join("bad.toml");
+    std::fs::write(
+        &path,
+        "schema_version = 1\nname = \"x\"\nbase = \"nope.toml\"\nseeds = 2\n[axes]\n",
+    )
+    .unwrap();
+    let e = load_sweep(&path).unwrap_err();
+    assert!(
+        e.contains("bad.toml") && e.contains("base") && e.contains("nope.toml"),
+        "{e}"
+    );
+    std::fs::write(&path, format!("schema_version = 1\nname = \"x\"\nbase = \"{}\"\nseeds = 2\n[axes]\n\"world.indoor.obstruction_ratio\" = [0.9]\n", repo().join("scenarios/lab.toml").display())).unwrap();
+    let e = load_sweep(&path).unwrap_err();
+    assert!(
+        e.contains("obstruction_ratio") && e.contains("0.9") && e.contains("[0, 0.6]"),
+        "{e}"
+    );
+    std::fs::write(
+        &path,
+        "schema_version = 1\nname = \"x\"\nbase = \"a.toml\"\nseedz = 2\n[axes]\n",
+    )
+    .unwrap();
+    let e = load_sweep(&path).unwrap_err();
+    assert!(e.contains("bad.toml:4") && e.contains("seedz"), "{e}");
+}
+
+#[test]
+fn regression_passes_on_the_committed_baselines_and_catches_a_moved_metric() {
+    let rows = regress(
+        &repo(),
+        &["scenarios/indoor-grid-20.toml".to_string()],
+        false,
+    )
+    .unwrap();
+    assert_eq!(rows.len(), 5);
+    assert!(rows.iter().all(|r| !r.moved()), "{rows:?}");
+
+    // A copy of the repository's inputs with a doctored baseline.
+    let tmp = tempfile::tempdir().unwrap();
+    let root = tmp.path();
+    for dir in ["scenarios", "robots/models"] {
+        std::fs::create_dir_all(root.join(dir)).unwrap();
+        for e in std::fs::read_dir(repo().join(dir)).unwrap() {
+            let p = e.unwrap().path();
+            if p.is_file() {
+                std::fs::copy(&p, root.join(dir).join(p.file_name().unwrap())).unwrap();
+            }
+        }
+    }
+    std::fs::create_dir_all(root.join("results/baselines")).unwrap();
+    let text =
+        std::fs::read_to_string(repo().join("results/baselines/indoor-grid-20.json")).unwrap();
+    let mut b: Baseline = serde_json::from_str(&text).unwrap();
+    *b.metrics.get_mut("parent_vertices").unwrap() += 50.0;
+    std::fs::write(
+        root.join("results/baselines/indoor-grid-20.json"),
+        serde_json::to_string(&b).unwrap(),
+    )
+    .unwrap();
+    let rows = regress(root, &["scenarios/indoor-grid-20.toml".to_string()], false).unwrap();
+    let moved: Vec<_> = rows
+        .iter()
+        .filter(|r| r.moved())
+        .map(|r| r.metric.as_str())
+        .collect();
+    assert_eq!(moved, vec!["parent_vertices"]);
+}
+
+#[test]
+fn the_regress_command_exits_zero_on_the_committed_baselines() {
+    let out = hetsim(&["regress"], &[]);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{stdout}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(
+        stdout.contains("regress: 15 metrics within tolerance"),
+        "{stdout}"
+    );
+}
