@@ -83,9 +83,15 @@ pub fn select_parent_vertices(map: &Map, vis: &Visibility, params: &CoveragePara
         for &l in &vis.los_free[p] {
             retire(l, &mut done, &mut score, &mut remaining);
         }
-        for &v in &vertices {
-            if !near[v] && map.distance_m(v, p) <= f + 1e-9 {
-                near[v] = true;
+        let reach = (f / map.cell_m).floor() as i64;
+        let (pc, pr) = map.cell(p);
+        for dr in -reach..=reach {
+            for dc in -reach..=reach {
+                if let Some(v) = map.at(pc as i64 + dc, pr as i64 + dr) {
+                    if !near[v] && map.distance_m(v, p) <= f + 1e-9 {
+                        near[v] = true;
+                    }
+                }
             }
         }
     }

@@ -100,22 +100,31 @@ impl Visibility {
                 }
             }
         }
-        let mut los = vec![Vec::new(); map.len()];
-        let mut los_free = vec![Vec::new(); map.len()];
+        let mut los: Vec<Vec<Vertex>> = vec![Vec::new(); map.len()];
+        // Line of sight is symmetric: test each unordered pair once (offsets pointing
+        // "forward" in row-major order) and record it for both ends.
         for v in map.vertices() {
             let (c, r) = map.cell(v);
-            let mut seen: Vec<Vertex> = offsets
+            for &(dc, dr) in offsets
                 .iter()
-                .filter_map(|(dc, dr)| map.at(c as i64 + dc, r as i64 + dr))
-                .filter(|&w| map.is_free(w) && line_of_sight(map, v, w))
-                .collect();
-            seen.sort_unstable();
-            los_free[v] = seen
+                .filter(|(dc, dr)| *dr > 0 || (*dr == 0 && *dc > 0))
+            {
+                if let Some(w) = map.at(c as i64 + dc, r as i64 + dr) {
+                    if map.is_free(w) && line_of_sight(map, v, w) {
+                        los[v].push(w);
+                        los[w].push(v);
+                    }
+                }
+            }
+        }
+        let mut los_free = vec![Vec::new(); map.len()];
+        for v in map.vertices() {
+            los[v].sort_unstable();
+            los_free[v] = los[v]
                 .iter()
                 .copied()
                 .filter(|&w| !in_view(map, params, w, v, params.parent_radius_m))
                 .collect();
-            los[v] = seen;
         }
         Self { los, los_free }
     }
