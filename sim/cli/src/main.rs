@@ -56,6 +56,15 @@ enum Cmd {
         #[arg(long)]
         shard: Option<String>,
     },
+    /// Write results/coverage-tables.md and its figures (`hetsim report coverage`): runs or
+    /// resumes the table1 and table2 sweeps first.
+    Report {
+        /// What to report: `coverage`.
+        what: String,
+        /// Parallel runs (default: all cores).
+        #[arg(long)]
+        jobs: Option<usize>,
+    },
     /// Compare coverage planning on the indoor scenarios with results/baselines/*.json.
     Regress {
         /// Rewrite the baselines with today's values (keeps their tolerances).
@@ -133,6 +142,26 @@ fn real_main() -> Result<()> {
                 }
                 println!("ok: {}", f.display());
             }
+        }
+        Cmd::Report { what, jobs } => {
+            anyhow::ensure!(
+                what == "coverage",
+                "unknown report {what:?}: the only report is `coverage`"
+            );
+            let jobs =
+                jobs.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
+            let bar = progress_bar("report");
+            let path = hetsim_engine::report::coverage_report(
+                std::path::Path::new("."),
+                jobs,
+                &|done, total| {
+                    bar.set_length(total as u64);
+                    bar.set_position(done as u64);
+                },
+            )
+            .map_err(anyhow::Error::msg)?;
+            bar.finish_and_clear();
+            println!("results: {}", path.display());
         }
         Cmd::Sweep {
             target,

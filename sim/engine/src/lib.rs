@@ -12,7 +12,9 @@
 
 pub mod coverage;
 mod output;
+pub mod plot;
 pub mod regress;
+pub mod report;
 mod run;
 mod stacks;
 pub mod sweep;
