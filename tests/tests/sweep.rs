@@ -178,3 +178,95 @@ fn the_regress_command_exits_zero_on_the_committed_baselines() {
         "{stdout}"
     );
 }
+
+#[test]
+fn a_killed_sweep_leaves_only_whole_rows_and_resumes_to_the_same_files() {
+    let tmp = tempfile::tempdir().unwrap();
+    let path = tmp.path().join("kill.toml");
+    std::fs::write(
+        &path,
+        format!(
+            "schema_version = 1\nname = \"kill\"\nbase = \"{}\"\nseeds = 6\n\n[axes]\n\"world.indoor.obstruction_ratio\" = [0.0, 0.2]\n\"coverage.children\" = [1, 3]\n",
+            repo().join("scenarios/indoor-grid-20.toml").display()
+        ),
+    )
+    .unwrap();
+    let killed = tmp.path().join("killed");
+    let mut child = std::process::Command::new(hetsim_tests::hetsim_bin())
+        .args([
+            "sweep",
+            path.to_str().unwrap(),
+            "--jobs",
+            "2",
+            "--out",
+            killed.to_str().unwrap(),
+        ])
+        .current_dir(repo())
+        .stdout(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    // Kill it once some, but not all, rows exist.
+    let rows = killed.join("rows");
+    for _ in 0..600 {
+        let n = std::fs::read_dir(&rows)
+            .map(|d| {
+                d.filter(|e| {
+                    e.as_ref()
+                        .unwrap()
+                        .path()
+                        .extension()
+                        .is_some_and(|x| x == "csv")
+                })
+                .count()
+            })
+            .unwrap_or(0);
+        if n >= 3 || child.try_wait().unwrap().is_some() {
+            break;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(50));
+    }
+    child.kill().ok();
+    child.wait().unwrap();
+    let finished: Vec<_> = std::fs::read_dir(&rows)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|x| x == "csv"))
+        .collect();
+    assert!(
+        !finished.is_empty() && finished.len() < 24,
+        "{} rows after the kill",
+        finished.len()
+    );
+    for row in &finished {
+        let text = std::fs::read_to_string(row).unwrap();
+        assert!(
+            text.ends_with('\n') && text.trim_end().split(',').count() == 14,
+            "whole row in {}: {text:?}",
+            row.display()
+        );
+    }
+    let resumed = hetsim(
+        &[
+            "sweep",
+            path.to_str().unwrap(),
+            "--out",
+            killed.to_str().unwrap(),
+        ],
+        &[],
+    );
+    assert!(resumed.status.success());
+    let fresh = tmp.path().join("fresh");
+    let whole = hetsim(
+        &[
+            "sweep",
+            path.to_str().unwrap(),
+            "--jobs",
+            "1",
+            "--out",
+            fresh.to_str().unwrap(),
+        ],
+        &[],
+    );
+    assert!(whole.status.success());
+    assert_eq!(outputs(&killed), outputs(&fresh));
+}

@@ -5,7 +5,8 @@
 //! and the seeds; run `i` always means the same combination. Each finished run writes one
 //! row file `rows/<i>.csv` atomically, so an interrupted sweep resumes without redoing
 //! finished runs and never leaves a half-written row; `runs.csv`, `summary.csv` and
-//! `summary.md` are rebuilt from the row files in run order, so they do not depend on the
+//! `summary.md` (and `boxplot.png` when the sweep varies `coverage.children`) are rebuilt
+//! from the row files in run order, so they do not depend on the
 //! number of jobs, on scheduling, or on sharding (`merge` joins shards into the same files).
 
 use crate::coverage::{plan_scenario, CoverageMetrics};
@@ -502,6 +503,13 @@ pub fn summarize(sweep: &Sweep, out: &Path) -> Result<SweepSummary, String> {
             shown_cells.join(" | ")
         ));
     }
+    if let Some(png) = boxplot(sweep, &stats) {
+        let tmp = out.join("boxplot.png.tmp");
+        png.save_with_format(&tmp, image::ImageFormat::Png)
+            .map_err(|e| format!("{}: {e}", tmp.display()))?;
+        std::fs::rename(&tmp, out.join("boxplot.png"))
+            .map_err(|e| format!("{}: {e}", out.display()))?;
+    }
     write_atomic(&out.join("runs.csv"), runs_csv.as_bytes())?;
     write_atomic(&out.join("summary.csv"), summary_csv.as_bytes())?;
     write_atomic(&out.join("summary.md"), md.as_bytes())?;
@@ -510,4 +518,32 @@ pub fn summarize(sweep: &Sweep, out: &Path) -> Result<SweepSummary, String> {
         total: sweep.runs.len(),
         cells: stats,
     })
+}
+
+/// Box plots in the style of Figs. 3 and 4 when the sweep varies `coverage.children`: one
+/// panel per combination of the other axes, one stacked box per number of children.
+fn boxplot(sweep: &Sweep, cells: &[SummaryCell]) -> Option<image::RgbImage> {
+    let axes = sweep.axes();
+    let kids = axes.iter().position(|a| a == "coverage.children")?;
+    let mut panels: Vec<(String, Vec<crate::plot::StackedBox>)> = Vec::new();
+    for cell in cells {
+        let title: Vec<&str> = cell
+            .values
+            .iter()
+            .enumerate()
+            .filter(|(i, _)| *i != kids)
+            .map(|(_, v)| v.as_str())
+            .collect();
+        let title = title.join(" ");
+        let b = crate::plot::StackedBox {
+            label: cell.values[kids].clone(),
+            mapping: cell.stat("mapping_timesteps").samples.clone(),
+            coordination: cell.stat("coordination_timesteps").samples.clone(),
+        };
+        match panels.iter_mut().find(|(t, _)| *t == title) {
+            Some((_, boxes)) => boxes.push(b),
+            None => panels.push((title, vec![b])),
+        }
+    }
+    Some(crate::plot::stacked_boxes(&panels))
 }
