@@ -325,12 +325,14 @@ fn unknown_override_path() {
     );
     let (_, e, _d) = load(&text, None);
     assert_names(
+        // The key is written into the robot file's [body] table, whose parser refuses it and
+        // lists the fields it accepts.
         &e,
         "broken.toml",
         line_of(&text, "overrides"),
-        "body.top_speed",
+        "top_speed",
         "1.0",
-        "existing field",
+        "expected one of `drive`",
     );
 }
 
@@ -409,5 +411,22 @@ fn a_refused_run_exits_non_zero_and_writes_nothing() {
         leftovers.len(),
         2,
         "only the scenario and models/: {leftovers:?}"
+    );
+}
+
+#[test]
+fn override_into_a_missing_table() {
+    let text = SCENARIO.replace(
+        "mission = { kind = \"grid_goals\"",
+        "overrides = { \"wings.span_m\" = 2.0 }\nmission = { kind = \"grid_goals\"",
+    );
+    let (_, e, _d) = load(&text, None);
+    assert_names(
+        &e,
+        "broken.toml",
+        line_of(&text, "overrides"),
+        "wings.span_m",
+        "2.0",
+        "existing field",
     );
 }

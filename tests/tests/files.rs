@@ -210,7 +210,7 @@ fn in_the_village_the_rover_rides_the_terrain_and_the_helicopter_holds_40_m() {
         },
     )
     .unwrap();
-    let result = run(&s, |_, _| {});
+    let result = run(&s, |_, _| {}, None);
     let terrain = s.world.terrain.as_ref().unwrap();
     let (_, dala) = &result.truth[0];
     let (_, ressac) = &result.truth[1];

@@ -21,5 +21,8 @@ mod stack;
 
 pub use command::Command;
 pub use geometry::{pose_from_xyz_rpy, wrap_angle, yaw_of, Pose};
-pub use message::{Mission, OccupancyGrid, PoseStamped, SensorMsg};
+pub use message::{
+    ChildTracks, CompassReading, Delivered, GpsFix, ImuSample, LaserScan, Mission, OccupancyGrid,
+    Outgoing, PoseStamped, Rendezvous, SensorMsg, Track, WheelOdometry,
+};
 pub use stack::{RobotStack, StackStatus};

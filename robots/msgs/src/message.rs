@@ -80,19 +80,173 @@ pub enum Mission {
     Idle,
 }
 
+/// A compass heading.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct CompassReading {
+    /// Sim time, nanoseconds.
+    pub stamp_ns: u64,
+    /// Sensor name on the robot.
+    pub sensor: String,
+    /// Heading of the body x axis, counter-clockwise from east, radians in (-pi, pi].
+    pub heading_rad: f64,
+}
+
+/// A GPS position fix in the local world frame.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct GpsFix {
+    /// Sim time, nanoseconds.
+    pub stamp_ns: u64,
+    /// Sensor name on the robot.
+    pub sensor: String,
+    /// Antenna position (east, north, up), metres.
+    pub position_m: [f64; 3],
+    /// Standard deviation of each coordinate, metres.
+    pub sigma_m: f64,
+}
+
+/// Wheel encoder distances travelled since the previous reading.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct WheelOdometry {
+    /// Sim time, nanoseconds.
+    pub stamp_ns: u64,
+    /// Sensor name on the robot.
+    pub sensor: String,
+    /// Left wheel surface distance, metres.
+    pub left_m: f64,
+    /// Right wheel surface distance, metres.
+    pub right_m: f64,
+}
+
+/// An inertial measurement in the sensor frame.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ImuSample {
+    /// Sim time, nanoseconds.
+    pub stamp_ns: u64,
+    /// Sensor name on the robot.
+    pub sensor: String,
+    /// Angular rate, radians per second.
+    pub angular_rate_radps: [f64; 3],
+    /// Specific force (acceleration minus gravity), metres per second squared.
+    pub accel_mps2: [f64; 3],
+}
+
+/// A planar laser scan in the sensor frame (angles counter-clockwise from the sensor's x).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct LaserScan {
+    /// Sim time, nanoseconds.
+    pub stamp_ns: u64,
+    /// Sensor name on the robot.
+    pub sensor: String,
+    /// Angle of the first beam, radians.
+    pub angle_min_rad: f64,
+    /// Angle between beams, radians.
+    pub angle_increment_rad: f64,
+    /// Longest range, metres; a beam with no return reads `f32::INFINITY`.
+    pub range_max_m: f64,
+    /// Ranges, metres.
+    pub ranges_m: Vec<f32>,
+}
+
+/// One tracked child.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Track {
+    /// The child robot's name.
+    pub child: String,
+    /// Its measured position in the world's xy plane, metres.
+    pub position_m: [f64; 2],
+}
+
+/// The parent's tracker output: every child it sees.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ChildTracks {
+    /// Sim time, nanoseconds.
+    pub stamp_ns: u64,
+    /// Sensor name on the robot.
+    pub sensor: String,
+    /// Children seen, by name.
+    pub tracks: Vec<Track>,
+}
+
+/// A noisy relative pose of another robot seen by this one.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Rendezvous {
+    /// Sim time, nanoseconds.
+    pub stamp_ns: u64,
+    /// Sensor name on the robot.
+    pub sensor: String,
+    /// The robot seen.
+    pub other: String,
+    /// `self_from_other`: the other robot's body pose in this robot's body frame.
+    pub relative: Pose,
+    /// Standard deviation of the relative position, metres.
+    pub sigma_m: f64,
+    /// Standard deviation of the relative yaw, radians.
+    pub sigma_rad: f64,
+}
+
+/// A message from another robot, delivered by the radio.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Delivered {
+    /// The sending robot.
+    pub from: String,
+    /// What it is about (the sender's choice).
+    pub topic: String,
+    /// When it was sent, nanoseconds.
+    pub sent_ns: u64,
+    /// When it arrived, nanoseconds.
+    pub stamp_ns: u64,
+    /// The bytes sent.
+    pub payload: Vec<u8>,
+}
+
+/// A message a stack asks the radio to send.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Outgoing {
+    /// The receiving robot's name.
+    pub to: String,
+    /// What it is about.
+    pub topic: String,
+    /// The bytes to send.
+    pub payload: Vec<u8>,
+}
+
 /// A message delivered to a robot stack.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub enum SensorMsg {
     /// Ground-truth pose of the robot itself (the "accurate localization" of the seed's parent,
     /// and the stand-in for estimation until the SLAM and coverage stacks take over).
     TruthPose(PoseStamped),
+    /// Compass.
+    Compass(CompassReading),
+    /// GPS.
+    Gps(GpsFix),
+    /// Wheel encoders.
+    WheelOdometry(WheelOdometry),
+    /// Inertial measurement unit.
+    Imu(ImuSample),
+    /// Laser scanner.
+    LaserScan(LaserScan),
+    /// Child tracker.
+    ChildTracks(ChildTracks),
+    /// Rendezvous sensor.
+    Rendezvous(Rendezvous),
+    /// Radio.
+    Comms(Delivered),
 }
 
 impl SensorMsg {
     /// Sim time of the message, nanoseconds.
     pub fn stamp_ns(&self) -> u64 {
         match self {
-            SensorMsg::TruthPose(p) => p.stamp_ns,
+            SensorMsg::TruthPose(m) => m.stamp_ns,
+            SensorMsg::Compass(m) => m.stamp_ns,
+            SensorMsg::Gps(m) => m.stamp_ns,
+            SensorMsg::WheelOdometry(m) => m.stamp_ns,
+            SensorMsg::Imu(m) => m.stamp_ns,
+            SensorMsg::LaserScan(m) => m.stamp_ns,
+            SensorMsg::ChildTracks(m) => m.stamp_ns,
+            SensorMsg::Rendezvous(m) => m.stamp_ns,
+            SensorMsg::Comms(m) => m.stamp_ns,
         }
     }
 }

@@ -1,6 +1,6 @@
 //! The interface every robot stack implements.
 
-use crate::{Command, SensorMsg};
+use crate::{Command, Outgoing, SensorMsg};
 use serde::{Deserialize, Serialize};
 
 /// How far a stack has got with its mission.
@@ -32,4 +32,10 @@ pub trait RobotStack: Send {
 
     /// Progress with the mission.
     fn status(&self) -> StackStatus;
+
+    /// Messages to send to other robots, taken after each [`RobotStack::step`]. The radio
+    /// (range, latency, bandwidth, loss) decides whether and when they arrive.
+    fn outbox(&mut self) -> Vec<Outgoing> {
+        Vec::new()
+    }
 }

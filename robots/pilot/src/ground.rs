@@ -170,8 +170,9 @@ impl GroundPilot {
 impl RobotStack for GroundPilot {
     fn step(&mut self, _now_ns: u64, inbox: &[SensorMsg]) -> Command {
         for msg in inbox {
-            let SensorMsg::TruthPose(p) = msg;
-            self.pose = Some(p.pose);
+            if let SensorMsg::TruthPose(p) = msg {
+                self.pose = Some(p.pose);
+            }
         }
         let Some(pose) = self.pose else {
             return Command::Stop;

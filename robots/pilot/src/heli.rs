@@ -46,7 +46,9 @@ impl HeliPilot {
 impl RobotStack for HeliPilot {
     fn step(&mut self, _now_ns: u64, inbox: &[SensorMsg]) -> Command {
         for msg in inbox {
-            let SensorMsg::TruthPose(p) = msg;
+            let SensorMsg::TruthPose(p) = msg else {
+                continue;
+            };
             if let Some((t0, pose0)) = self.last {
                 let dt = (p.stamp_ns - t0) as f64 * 1e-9;
                 if dt > 0.0 {

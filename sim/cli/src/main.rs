@@ -33,6 +33,9 @@ enum Cmd {
         /// Results directory (default: results/runs/<name>-seed<seed>-<digest8>).
         #[arg(long)]
         out: Option<PathBuf>,
+        /// Also record every message, command and ground-truth pose to this MCAP file.
+        #[arg(long)]
+        record: Option<PathBuf>,
     },
     /// Check scenario and robot files without running anything.
     Validate {
@@ -104,6 +107,7 @@ fn real_main() -> Result<()> {
             seed,
             duration,
             out,
+            record,
         } => {
             let options = LoadOptions {
                 seed,
@@ -112,11 +116,25 @@ fn real_main() -> Result<()> {
             let loaded = load_scenario(&scenario, &options)?;
             let bar = progress_bar(&loaded.file.name);
             let start = wall_clock();
-            let result = run(&loaded, |tick, total| {
-                bar.set_length(total);
-                bar.set_position(tick);
-            });
+            let mut recorder = match &record {
+                Some(path) => Some(
+                    hetsim_engine::record::Recorder::create(path).map_err(anyhow::Error::msg)?,
+                ),
+                None => None,
+            };
+            let result = run(
+                &loaded,
+                |tick, total| {
+                    bar.set_length(total);
+                    bar.set_position(tick);
+                },
+                recorder.as_mut(),
+            );
             bar.finish_and_clear();
+            if let Some(r) = recorder {
+                let path = r.finish().map_err(anyhow::Error::msg)?;
+                eprintln!("recorded: {}", path.display());
+            }
             let wall = start.elapsed().as_secs_f64();
             let timing = serde_json::json!({
                 "wall_secs": wall,
@@ -249,7 +267,7 @@ fn real_main() -> Result<()> {
                     },
                 )?;
                 let start = wall_clock();
-                let result = run(&loaded, |_, _| {});
+                let result = run(&loaded, |_, _| {}, None);
                 let wall = start.elapsed().as_secs_f64();
                 println!(
                     "| {} | {} | {:.0} | {:.3} | {:.0} |",

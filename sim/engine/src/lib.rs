@@ -10,9 +10,11 @@
 //! digest covers everything the run produced. Wall-clock timings are kept apart, in
 //! `timing.json`, and are not part of the digest.
 
+pub mod comms;
 pub mod coverage;
 mod output;
 pub mod plot;
+pub mod record;
 pub mod regress;
 pub mod report;
 mod run;

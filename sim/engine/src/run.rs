@@ -1,12 +1,18 @@
 //! Running a scenario tick by tick.
 
+use crate::comms::{Comms, CommsStats};
+use crate::record::Recorder;
 use crate::stacks::build_stack;
 use hetsim_core::{RunDigest, Streams};
-use hetsim_msgs::{Command, Pose, PoseStamped, RobotStack, SensorMsg, StackStatus};
+use hetsim_msgs::{
+    pose_from_xyz_rpy, Command, Pose, PoseStamped, RobotStack, SensorMsg, StackStatus,
+};
 use hetsim_physics::Physics;
 use hetsim_scene::Scenario;
+use hetsim_sensors::SensorSuite;
 use rayon::prelude::*;
 use serde::Serialize;
+use std::collections::BTreeMap;
 
 /// What a robot did.
 #[derive(Clone, Debug, PartialEq, Serialize)]
@@ -54,6 +60,10 @@ pub struct Metrics {
     pub unreachable_vertices: Option<Vec<(usize, usize)>>,
     /// Number of buildings, walls and obstacles.
     pub solids: usize,
+    /// Messages delivered per topic (sensors, ground truth, radio).
+    pub messages: BTreeMap<String, u64>,
+    /// What the radio did.
+    pub comms: CommsStats,
     /// Indoor worlds with a `[coverage]` table: the grid-level coverage plan's figures.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub coverage: Option<crate::coverage::CoverageMetrics>,
@@ -69,15 +79,44 @@ pub struct RunResult {
     pub digest: RunDigest,
 }
 
-/// Runs a scenario to its duration. `progress(tick, total)` is called every 1 % or so.
+/// Runs a scenario to its duration. `progress(tick, total)` is called every 1 % or so. With
+/// a recorder, every command, message and ground-truth pose also goes to its MCAP file.
 ///
 /// The loop itself runs on a rayon worker thread, so the per-tick fan-out to the stacks is a
 /// cheap fork-join rather than a hand-off from an outside thread every tick.
-pub fn run(scenario: &Scenario, progress: impl FnMut(u64, u64) + Send) -> RunResult {
-    rayon::scope(|_| run_on_worker(scenario, progress))
+pub fn run(
+    scenario: &Scenario,
+    progress: impl FnMut(u64, u64) + Send,
+    recorder: Option<&mut Recorder>,
+) -> RunResult {
+    rayon::scope(|_| run_on_worker(scenario, progress, recorder))
 }
 
-fn run_on_worker(scenario: &Scenario, mut progress: impl FnMut(u64, u64)) -> RunResult {
+/// Where messages go: the robot's inbox, the digest, the recording and the counts.
+struct Post<'a> {
+    names: Vec<String>,
+    inboxes: Vec<Vec<SensorMsg>>,
+    digest: RunDigest,
+    recorder: Option<&'a mut Recorder>,
+    counts: BTreeMap<String, u64>,
+}
+
+impl Post<'_> {
+    fn deliver(&mut self, robot: usize, topic: &str, msg: SensorMsg, mount: Option<&Pose>) {
+        self.digest.record(topic, &encode(&msg));
+        if let Some(r) = self.recorder.as_deref_mut() {
+            r.sensor(&self.names[robot], topic, mount, &msg);
+        }
+        *self.counts.entry(topic.to_string()).or_default() += 1;
+        self.inboxes[robot].push(msg);
+    }
+}
+
+fn run_on_worker(
+    scenario: &Scenario,
+    mut progress: impl FnMut(u64, u64),
+    recorder: Option<&mut Recorder>,
+) -> RunResult {
     let clock = scenario.clock;
     let streams = Streams::new(scenario.seed);
     let mut physics = Physics::new(&scenario.world, clock.dt_secs());
@@ -93,57 +132,102 @@ fn run_on_worker(scenario: &Scenario, mut progress: impl FnMut(u64, u64)) -> Run
         );
         stacks.push(build_stack(scenario, r));
     }
+    let names: Vec<String> = scenario
+        .robots
+        .iter()
+        .map(|r| r.spec.name.clone())
+        .collect();
+    let mut sensors = SensorSuite::new(scenario, &streams);
+    let mut comms = Comms::new(scenario.file.comms.clone(), clock, names.clone(), streams);
     let n = stacks.len();
     let total = clock.ticks_in(scenario.duration_secs);
     let truth_period = clock
         .period_ticks(scenario.file.truth_rate_hz)
         .expect("validated truth rate");
-    let mut digest = RunDigest::new();
-    let mut inboxes: Vec<Vec<SensorMsg>> = vec![Vec::new(); n];
+    let mut post = Post {
+        names: names.clone(),
+        inboxes: vec![Vec::new(); n],
+        digest: RunDigest::new(),
+        recorder,
+        counts: BTreeMap::new(),
+    };
     let mut truth: Vec<Vec<(u64, Pose)>> = vec![Vec::new(); n];
-    let topics: Vec<(String, String)> = scenario
+    let cmd_topics: Vec<String> = names.iter().map(|r| format!("{r}/cmd")).collect();
+    let truth_topics: Vec<String> = names.iter().map(|r| format!("{r}/truth")).collect();
+    let radio_topics: Vec<String> = names.iter().map(|r| format!("{r}/radio")).collect();
+    let mounts: BTreeMap<String, Pose> = scenario
         .robots
         .iter()
-        .map(|r| {
+        .flat_map(|r| {
+            r.model
+                .sensors
+                .iter()
+                .map(move |s| (format!("{}/{}", r.spec.name, s.name()), s.mount().clone()))
+        })
+        .map(|(k, m)| {
             (
-                format!("{}/cmd", r.spec.name),
-                format!("{}/truth", r.spec.name),
+                k,
+                pose_from_xyz_rpy(m.xyz_m, m.rpy_deg.map(f64::to_radians)),
             )
         })
         .collect();
+    let deliver_truth =
+        |post: &mut Post, truth: &mut Vec<Vec<(u64, Pose)>>, physics: &Physics, stamp_ns: u64| {
+            for i in 0..n {
+                let pose = physics.pose(i);
+                post.deliver(
+                    i,
+                    &truth_topics[i],
+                    SensorMsg::TruthPose(PoseStamped { stamp_ns, pose }),
+                    None,
+                );
+                truth[i].push((stamp_ns, pose));
+            }
+        };
     // The initial pose, delivered before the first tick.
-    deliver_truth(&physics, 0, &topics, &mut inboxes, &mut truth, &mut digest);
+    deliver_truth(&mut post, &mut truth, &physics, 0);
     let report_every = (total / 100).max(1);
     for tick in 0..total {
         let now = clock.time_ns(tick);
         // 1. stacks -> commands (in parallel; collected in robot order)
         let commands: Vec<Command> = stacks
             .par_iter_mut()
-            .zip(inboxes.par_iter_mut())
+            .zip(post.inboxes.par_iter_mut())
             .map(|(stack, inbox)| {
                 let cmd = stack.step(now, inbox);
                 inbox.clear();
                 cmd
             })
             .collect();
-        // 2. commands -> actuators
+        // 2. commands -> actuators; outgoing radio messages -> the radio
+        let positions: Vec<[f64; 3]> = (0..n)
+            .map(|i| physics.pose(i).translation.vector.into())
+            .collect();
         for (i, cmd) in commands.iter().enumerate() {
-            digest.record(&topics[i].0, &encode(cmd));
+            post.digest.record(&cmd_topics[i], &encode(cmd));
+            if let Some(r) = post.recorder.as_deref_mut() {
+                r.command(&names[i], now, cmd);
+            }
             physics.command(i, cmd);
+            for msg in stacks[i].outbox() {
+                post.digest.record(&radio_topics[i], &encode(&msg));
+                comms.send(tick, i, msg, &positions);
+            }
         }
         // 3. physics
         physics.step();
         // 4. sensors due at the end of this tick
         let after = tick + 1;
         if after % truth_period == 0 {
-            deliver_truth(
-                &physics,
-                clock.time_ns(after),
-                &topics,
-                &mut inboxes,
-                &mut truth,
-                &mut digest,
-            );
+            deliver_truth(&mut post, &mut truth, &physics, clock.time_ns(after));
+        }
+        for sample in sensors.sample(&physics, tick) {
+            let mount = mounts.get(&sample.topic);
+            post.deliver(sample.robot, &sample.topic, sample.msg, mount);
+        }
+        // 5. radio deliveries
+        for (to, delivered) in comms.deliver(after) {
+            post.deliver(to, &radio_topics[to], SensorMsg::Comms(delivered), None);
         }
         if tick % report_every == 0 {
             progress(tick, total);
@@ -151,33 +235,13 @@ fn run_on_worker(scenario: &Scenario, mut progress: impl FnMut(u64, u64)) -> Run
     }
     progress(total, total);
     let statuses: Vec<StackStatus> = stacks.iter().map(|s| s.status()).collect();
-    let metrics = metrics(scenario, &physics, &statuses, total, digest.records());
+    let mut metrics = metrics(scenario, &physics, &statuses, total, post.digest.records());
+    metrics.messages = post.counts;
+    metrics.comms = comms.stats.clone();
     RunResult {
-        truth: scenario
-            .robots
-            .iter()
-            .map(|r| r.spec.name.clone())
-            .zip(truth)
-            .collect(),
+        truth: names.into_iter().zip(truth).collect(),
         metrics,
-        digest,
-    }
-}
-
-fn deliver_truth(
-    physics: &Physics,
-    stamp_ns: u64,
-    topics: &[(String, String)],
-    inboxes: &mut [Vec<SensorMsg>],
-    truth: &mut [Vec<(u64, Pose)>],
-    digest: &mut RunDigest,
-) {
-    for (i, inbox) in inboxes.iter_mut().enumerate() {
-        let pose = physics.pose(i);
-        let msg = SensorMsg::TruthPose(PoseStamped { stamp_ns, pose });
-        digest.record(&topics[i].1, &encode(&msg));
-        inbox.push(msg);
-        truth[i].push((stamp_ns, pose));
+        digest: post.digest,
     }
 }
 
@@ -222,6 +286,8 @@ fn metrics(
         free_vertices: grid.map(|g| g.grid.free_count()),
         unreachable_vertices: grid.map(|g| g.unreachable.clone()),
         solids: scenario.world.solids.len(),
+        messages: BTreeMap::new(),
+        comms: CommsStats::default(),
         coverage: scenario
             .file
             .coverage

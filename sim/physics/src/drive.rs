@@ -75,6 +75,11 @@ impl GroundDrive {
     pub fn halt(&mut self) {
         self.actual = [0.0; 2];
     }
+
+    /// Actual wheel surface speeds `[left, right]`, m/s.
+    pub fn actual(&self) -> [f64; 2] {
+        self.actual
+    }
 }
 
 /// Attitude and velocity state of a helicopter.

@@ -21,4 +21,4 @@
 pub mod drive;
 mod world;
 
-pub use world::{Physics, RobotState};
+pub use world::{Hit, Physics, RobotState};

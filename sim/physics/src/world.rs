@@ -27,6 +27,17 @@ enum Drive {
     Heli(HeliDrive),
 }
 
+/// What a ray hit.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Hit {
+    /// Terrain or floor.
+    Ground,
+    /// A building, wall or obstacle.
+    Solid,
+    /// A robot, by index.
+    Robot(usize),
+}
+
 /// What the simulator knows about a robot's motion.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct RobotState {
@@ -348,6 +359,66 @@ impl Physics {
     /// Motion bookkeeping of a robot.
     pub fn state(&self, index: usize) -> RobotState {
         self.robots[index].state
+    }
+
+    /// Casts a ray from `origin` along the unit vector `dir` (world frame) up to `max_m`,
+    /// against everything but robot `ignore`. Returns the distance and what was hit.
+    pub fn cast_ray(
+        &self,
+        origin: [f64; 3],
+        dir: [f64; 3],
+        max_m: f64,
+        ignore: Option<usize>,
+    ) -> Option<(f64, Hit)> {
+        let skip = ignore.map(|i| self.robots[i].collider);
+        let predicate = move |h: ColliderHandle, _: &Collider| Some(h) != skip;
+        let filter = QueryFilter::default().predicate(&predicate);
+        let ray = Ray::new(
+            Vector::new(origin[0], origin[1], origin[2]),
+            Vector::new(dir[0], dir[1], dir[2]),
+        );
+        self.world
+            .cast_ray(&ray, max_m, true, filter)
+            .map(|(h, toi)| {
+                let tag = self.world.colliders[h].user_data;
+                let hit = match tag {
+                    TAG_GROUND => Hit::Ground,
+                    TAG_SOLID => Hit::Solid,
+                    t => Hit::Robot((t - TAG_ROBOT) as usize),
+                };
+                (toi, hit)
+            })
+    }
+
+    /// Whether the straight segment between two world points is free of static geometry
+    /// and of every robot except those in `ignore`.
+    pub fn clear_line(&self, from: [f64; 3], to: [f64; 3], ignore: &[usize]) -> bool {
+        let d = [to[0] - from[0], to[1] - from[1], to[2] - from[2]];
+        let len = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+        if len < 1e-12 {
+            return true;
+        }
+        let skip: Vec<ColliderHandle> = ignore.iter().map(|&i| self.robots[i].collider).collect();
+        let predicate = move |h: ColliderHandle, _: &Collider| !skip.contains(&h);
+        let filter = QueryFilter::default().predicate(&predicate);
+        let ray = Ray::new(
+            Vector::new(from[0], from[1], from[2]),
+            Vector::new(d[0] / len, d[1] / len, d[2] / len),
+        );
+        self.world.cast_ray(&ray, len, true, filter).is_none()
+    }
+
+    /// Actual wheel surface speeds `[left, right]` of a wheeled robot, m/s.
+    pub fn wheel_speeds(&self, index: usize) -> Option<[f64; 2]> {
+        match &self.robots[index].drive {
+            Drive::Ground(d) => Some(d.actual()),
+            Drive::Heli(_) => None,
+        }
+    }
+
+    /// Number of robots.
+    pub fn robot_count(&self) -> usize {
+        self.robots.len()
     }
 
     /// Number of colliders (static and robots).

@@ -24,7 +24,7 @@ pub use robot::{
     Body, DriveKind, Helicopter, Intrinsics, Mount, Pilot, RobotModel, Sensor, SteeringKind, Wheels,
 };
 pub use scenario::{
-    BoxSpec, CoverageSpec, IndoorSpec, MissionSpec, RobotSpec, ScenarioFile, Start, VillageSpec,
-    WorldKind, WorldSpec,
+    BoxSpec, CommsSpec, CoverageSpec, IndoorSpec, MissionSpec, RobotSpec, ScenarioFile, Start,
+    VillageSpec, WorldKind, WorldSpec,
 };
 pub use source::{Source, SCHEMA_VERSION};

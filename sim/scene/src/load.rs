@@ -242,18 +242,33 @@ fn load_with_overrides(
     Ok(model)
 }
 
-/// Finds a field by dotted path; an array of tables is indexed by its elements' `name`.
+/// Finds a field by dotted path; an array of tables is indexed by its elements' `name`. A
+/// missing last segment is created in an existing table (a field the file leaves at its
+/// default); whether it is a real field is then decided by parsing, which refuses unknown
+/// fields.
 fn lookup_mut<'a>(table: &'a mut toml::Table, dotted: &str) -> Option<&'a mut toml::Value> {
-    let mut segments = dotted.split('.');
-    let mut current = table.get_mut(segments.next()?)?;
-    for seg in segments {
-        current = match current {
-            toml::Value::Table(t) => t.get_mut(seg)?,
+    fn child<'b>(v: &'b mut toml::Value, seg: &str, create: bool) -> Option<&'b mut toml::Value> {
+        match v {
+            toml::Value::Table(t) => {
+                if create && !t.contains_key(seg) {
+                    t.insert(seg.to_string(), toml::Value::Boolean(false));
+                }
+                t.get_mut(seg)
+            }
             toml::Value::Array(items) => items
                 .iter_mut()
-                .find(|v| v.get("name").and_then(|n| n.as_str()) == Some(seg))?,
-            _ => return None,
-        };
+                .find(|i| i.get("name").and_then(|n| n.as_str()) == Some(seg)),
+            _ => None,
+        }
+    }
+    let segments: Vec<&str> = dotted.split('.').collect();
+    let (first, rest) = segments.split_first()?;
+    if rest.is_empty() {
+        return table.get_mut(*first);
+    }
+    let mut current = table.get_mut(*first)?;
+    for (k, seg) in rest.iter().enumerate() {
+        current = child(current, seg, k + 1 == rest.len())?;
     }
     Some(current)
 }

@@ -126,6 +126,10 @@ pub struct Pilot {
     pub aim_tolerance_deg: Option<f64>,
 }
 
+fn default_tracked_model() -> String {
+    "ctbot".to_string()
+}
+
 fn default_steering() -> SteeringKind {
     SteeringKind::Smooth
 }
@@ -235,6 +239,10 @@ pub enum Sensor {
         /// Constant heading bias, degrees.
         #[serde(default)]
         bias_deg: f64,
+        /// Heading-dependent distortion (uncompensated hard iron): adds
+        /// `distortion_deg * sin(heading)`, degrees.
+        #[serde(default)]
+        distortion_deg: f64,
     },
     /// A GPS receiver.
     Gps {
@@ -244,8 +252,62 @@ pub enum Sensor {
         rate_hz: f64,
         /// Mounting pose.
         mount: Mount,
-        /// Standard deviation of horizontal position error, metres.
+        /// Standard deviation of each position coordinate, metres.
         sigma_m: f64,
+        /// Fix only at these sim times, seconds, instead of at `rate_hz` (the seed's
+        /// occasional fixes). Each is delivered at the first tick at or after it.
+        #[serde(default)]
+        schedule_s: Vec<f64>,
+        /// Intervals `[start, end]`, seconds, without any fix.
+        #[serde(default)]
+        outages_s: Vec<[f64; 2]>,
+    },
+    /// Wheel encoders.
+    WheelOdometry {
+        /// Unique on the robot.
+        name: String,
+        /// Readings per second.
+        rate_hz: f64,
+        /// Mounting pose.
+        mount: Mount,
+        /// Standard deviation of the constant per-wheel scale error (wheel radius error).
+        scale_sigma: f64,
+        /// Standard deviation of the distance noise per metre travelled, metres.
+        noise_per_m: f64,
+    },
+    /// Inertial measurement unit.
+    Imu {
+        /// Unique on the robot.
+        name: String,
+        /// Samples per second.
+        rate_hz: f64,
+        /// Mounting pose.
+        mount: Mount,
+        /// Angular-rate white noise, radians per second.
+        gyro_sigma_radps: f64,
+        /// Constant gyro bias drawn once per run with this standard deviation, rad/s.
+        gyro_bias_sigma_radps: f64,
+        /// Acceleration white noise, metres per second squared.
+        accel_sigma_mps2: f64,
+        /// Constant accelerometer bias drawn once per run with this standard deviation.
+        accel_bias_sigma_mps2: f64,
+    },
+    /// Detects other robots in view and measures their relative pose.
+    Rendezvous {
+        /// Unique on the robot.
+        name: String,
+        /// Measurements per second.
+        rate_hz: f64,
+        /// Mounting pose (the sensor looks along its x axis).
+        mount: Mount,
+        /// Largest detection distance, metres.
+        range_m: f64,
+        /// Full opening angle of the detection cone, degrees.
+        fov_deg: f64,
+        /// Relative position noise, metres.
+        sigma_m: f64,
+        /// Relative yaw noise, degrees.
+        sigma_deg: f64,
     },
     /// A planar laser scanner.
     Laser {
@@ -278,6 +340,9 @@ pub enum Sensor {
         error_mean_m: f64,
         /// Standard deviation of the position error, metres (0.02 in the seed).
         error_std_m: f64,
+        /// Robot model the tracker follows (the children's orange hats).
+        #[serde(default = "default_tracked_model")]
+        tracks_model: String,
     },
 }
 
@@ -291,7 +356,10 @@ impl Sensor {
             | Sensor::Compass { name, .. }
             | Sensor::Gps { name, .. }
             | Sensor::Laser { name, .. }
-            | Sensor::ChildTracker { name, .. } => name,
+            | Sensor::ChildTracker { name, .. }
+            | Sensor::WheelOdometry { name, .. }
+            | Sensor::Imu { name, .. }
+            | Sensor::Rendezvous { name, .. } => name,
         }
     }
 
@@ -304,7 +372,10 @@ impl Sensor {
             | Sensor::Compass { rate_hz, .. }
             | Sensor::Gps { rate_hz, .. }
             | Sensor::Laser { rate_hz, .. }
-            | Sensor::ChildTracker { rate_hz, .. } => *rate_hz,
+            | Sensor::ChildTracker { rate_hz, .. }
+            | Sensor::WheelOdometry { rate_hz, .. }
+            | Sensor::Imu { rate_hz, .. }
+            | Sensor::Rendezvous { rate_hz, .. } => *rate_hz,
         }
     }
 
@@ -317,7 +388,10 @@ impl Sensor {
             | Sensor::Compass { mount, .. }
             | Sensor::Gps { mount, .. }
             | Sensor::Laser { mount, .. }
-            | Sensor::ChildTracker { mount, .. } => mount,
+            | Sensor::ChildTracker { mount, .. }
+            | Sensor::WheelOdometry { mount, .. }
+            | Sensor::Imu { mount, .. }
+            | Sensor::Rendezvous { mount, .. } => mount,
         }
     }
 }
@@ -536,12 +610,82 @@ impl RobotModel {
                 Sensor::Compass {
                     sigma_deg,
                     bias_deg,
+                    distortion_deg,
                     ..
                 } => {
                     c.range(&at("sigma_deg"), *sigma_deg, 0.0, 90.0)?;
                     c.range(&at("bias_deg"), *bias_deg, -180.0, 180.0)?;
+                    c.range(&at("distortion_deg"), *distortion_deg, -90.0, 90.0)?;
                 }
-                Sensor::Gps { sigma_m, .. } => c.range(&at("sigma_m"), *sigma_m, 0.0, 100.0)?,
+                Sensor::Gps {
+                    sigma_m,
+                    schedule_s,
+                    outages_s,
+                    ..
+                } => {
+                    c.range(&at("sigma_m"), *sigma_m, 0.0, 100.0)?;
+                    if schedule_s.iter().any(|t| !(t.is_finite() && *t >= 0.0))
+                        || schedule_s.windows(2).any(|w| w[1] < w[0])
+                    {
+                        return Err(c.error_at(
+                            &at("schedule_s"),
+                            format!("{schedule_s:?}"),
+                            "ascending sim times in seconds >= 0",
+                        ));
+                    }
+                    if outages_s
+                        .iter()
+                        .any(|[a, b]| !(a.is_finite() && b.is_finite() && *a >= 0.0 && a <= b))
+                    {
+                        return Err(c.error_at(
+                            &at("outages_s"),
+                            format!("{outages_s:?}"),
+                            "intervals [start, end] in seconds with 0 <= start <= end",
+                        ));
+                    }
+                }
+                Sensor::WheelOdometry {
+                    scale_sigma,
+                    noise_per_m,
+                    ..
+                } => {
+                    c.range(&at("scale_sigma"), *scale_sigma, 0.0, 0.5)?;
+                    c.range(&at("noise_per_m"), *noise_per_m, 0.0, 1.0)?;
+                }
+                Sensor::Imu {
+                    gyro_sigma_radps,
+                    gyro_bias_sigma_radps,
+                    accel_sigma_mps2,
+                    accel_bias_sigma_mps2,
+                    ..
+                } => {
+                    c.range(&at("gyro_sigma_radps"), *gyro_sigma_radps, 0.0, 1.0)?;
+                    c.range(
+                        &at("gyro_bias_sigma_radps"),
+                        *gyro_bias_sigma_radps,
+                        0.0,
+                        1.0,
+                    )?;
+                    c.range(&at("accel_sigma_mps2"), *accel_sigma_mps2, 0.0, 10.0)?;
+                    c.range(
+                        &at("accel_bias_sigma_mps2"),
+                        *accel_bias_sigma_mps2,
+                        0.0,
+                        10.0,
+                    )?;
+                }
+                Sensor::Rendezvous {
+                    range_m,
+                    fov_deg,
+                    sigma_m,
+                    sigma_deg,
+                    ..
+                } => {
+                    c.positive(&at("range_m"), *range_m)?;
+                    c.range(&at("fov_deg"), *fov_deg, 1e-3, 360.0)?;
+                    c.range(&at("sigma_m"), *sigma_m, 0.0, 100.0)?;
+                    c.range(&at("sigma_deg"), *sigma_deg, 0.0, 180.0)?;
+                }
                 Sensor::Laser {
                     fov_deg,
                     resolution_deg,

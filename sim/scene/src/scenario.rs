@@ -35,6 +35,34 @@ pub struct ScenarioFile {
     /// Cooperative coverage mapping parameters (indoor worlds).
     #[serde(default)]
     pub coverage: Option<CoverageSpec>,
+    /// The radio between robots.
+    #[serde(default)]
+    pub comms: CommsSpec,
+}
+
+/// The `[comms]` table: the radio link model between every pair of robots.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct CommsSpec {
+    /// Largest distance between sender and receiver at sending time, metres.
+    pub range_m: f64,
+    /// Propagation and processing delay, seconds (rounded to whole ticks).
+    pub latency_s: f64,
+    /// Link rate, bits per second; a message occupies its link for `8 * bytes / rate`.
+    pub bandwidth_bps: f64,
+    /// Probability that a message is lost, independently per message.
+    pub loss: f64,
+}
+
+impl Default for CommsSpec {
+    fn default() -> Self {
+        Self {
+            range_m: 200.0,
+            latency_s: 0.02,
+            bandwidth_bps: 1.0e6,
+            loss: 0.0,
+        }
+    }
 }
 
 /// The `[coverage]` table: the parent/child team's mapping parameters (seed 002).
@@ -405,6 +433,11 @@ impl ScenarioFile {
                 c.range(&at("children"), n as f64, 1.0, 32.0)?;
             }
         }
+        let at = |f: &'static str| ["comms", f];
+        c.positive(&at("range_m"), self.comms.range_m)?;
+        c.range(&at("latency_s"), self.comms.latency_s, 0.0, 60.0)?;
+        c.positive(&at("bandwidth_bps"), self.comms.bandwidth_bps)?;
+        c.range(&at("loss"), self.comms.loss, 0.0, 1.0)?;
         if self.robots.is_empty() {
             return Err(c.error_at(&["robots"], "(none)", "at least one [[robots]] entry"));
         }
