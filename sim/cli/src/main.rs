@@ -87,6 +87,9 @@ enum Cmd {
         /// Instead: time coverage planning of each scenario (median of 5).
         #[arg(long)]
         coverage: bool,
+        /// Instead: time one laser scan, and a tick with and without the non-visual sensors.
+        #[arg(long)]
+        sensors: bool,
     },
 }
 
@@ -220,6 +223,68 @@ fn real_main() -> Result<()> {
         }
         Cmd::Bench {
             scenarios,
+            sensors: true,
+            sim_secs,
+            ..
+        } => {
+            println!("| scenario | laser scan (481 rays) us | tick, all sensors us | tick, physics + truth only us |");
+            println!("|---|---|---|---|");
+            for s in &scenarios {
+                let loaded = load_scenario(
+                    s,
+                    &LoadOptions {
+                        seed: None,
+                        duration_secs: Some(sim_secs),
+                    },
+                )?;
+                let mut physics =
+                    hetsim_physics::Physics::new(&loaded.world, loaded.clock.dt_secs());
+                for r in &loaded.robots {
+                    physics.add_robot(
+                        &r.model,
+                        r.spec.start.x,
+                        r.spec.start.y,
+                        r.spec.start.z,
+                        r.spec.start.yaw_deg.to_radians(),
+                        hetsim_core::Streams::new(0).stream("bench"),
+                    );
+                }
+                physics.step();
+                let origin = physics.pose(0).translation.vector;
+                let o = [origin.x, origin.y, origin.z + 0.3];
+                let scans = 200;
+                let start = wall_clock();
+                let mut hits = 0usize;
+                for _ in 0..scans {
+                    for b in 0..481 {
+                        let a = (-120.0 + 0.5 * b as f64).to_radians();
+                        hits += usize::from(
+                            physics
+                                .cast_ray(o, [a.cos(), a.sin(), 0.0], 20.0, Some(0))
+                                .is_some(),
+                        );
+                    }
+                }
+                let scan_us = start.elapsed().as_secs_f64() * 1e6 / scans as f64;
+                let start = wall_clock();
+                let result = run(&loaded, |_, _| {}, None);
+                let with = start.elapsed().as_secs_f64() * 1e6 / result.metrics.ticks as f64;
+                let mut bare = loaded.clone();
+                for r in &mut bare.robots {
+                    r.model.sensors.clear();
+                }
+                let start = wall_clock();
+                let result = run(&bare, |_, _| {}, None);
+                let without = start.elapsed().as_secs_f64() * 1e6 / result.metrics.ticks as f64;
+                println!(
+                    "| {} | {scan_us:.0} | {with:.1} | {without:.1} |",
+                    loaded.file.name
+                );
+                std::hint::black_box(hits);
+            }
+        }
+        Cmd::Bench {
+            scenarios,
             coverage: true,
             ..
         } => {
@@ -266,6 +331,11 @@ fn real_main() -> Result<()> {
                         duration_secs: Some(sim_secs),
                     },
                 )?;
+                // Physics and ground truth only: no sensor models.
+                let mut loaded = loaded;
+                for r in &mut loaded.robots {
+                    r.model.sensors.clear();
+                }
                 let start = wall_clock();
                 let result = run(&loaded, |_, _| {}, None);
                 let wall = start.elapsed().as_secs_f64();
