@@ -1,0 +1,23 @@
+//! Headless offscreen rendering with wgpu: colour and ground-truth depth for pinhole cameras.
+//!
+//! * Backends: Vulkan (real GPUs, Mesa's lavapipe) and GL/GLES through EGL (Mesa's
+//!   llvmpipe); `HETSIM_BACKEND` (`vulkan`, `gl`, `any`) and `HETSIM_ADAPTER` (a substring of
+//!   the adapter's name) choose. No window or display server is needed.
+//! * One shader, `shaders/scene.wgsl`: lit, procedurally textured geometry, plus linear depth
+//!   (distance along the optical axis, metres) in a second target.
+//! * Cameras are exact pinholes: pixel `(u, v)` (OpenCV convention, centre of the top-left
+//!   pixel at (0, 0)) of a point `(x, y, z)` in the optical frame (x right, y down, z
+//!   forward) is `(αu x/z + u0, αv y/z + v0)`; the projection matrix reproduces this to
+//!   floating-point precision.
+//! * Several cameras are rendered as one batch: one command buffer, one submission, one wait.
+
+mod camera;
+mod gpu;
+mod mesh;
+
+pub use camera::{mount_to_optical, CameraView, Intrinsics};
+pub use gpu::{AdapterSummary, Frame, RenderError, RenderOptions, Renderer};
+pub use mesh::{RobotDraw, RobotPart};
+
+/// The scene shader's source, compiled into the binary from `shaders/scene.wgsl`.
+pub const SCENE_WGSL: &str = include_str!("../../../shaders/scene.wgsl");
