@@ -1,5 +1,6 @@
 //! Same inputs, same digest: across repeated runs, thread counts, and against a golden value.
 
+use hetsim_engine::RunOptions;
 use hetsim_engine::{run, write_run};
 use hetsim_scene::{load_scenario, LoadOptions};
 use hetsim_tests::{hetsim, printed_digest, repo};
@@ -13,13 +14,14 @@ fn digest_of(scenario: &str, seed: u64, secs: f64) -> String {
         },
     )
     .unwrap();
-    let result = run(&s, |_, _| {}, None);
+    let result = run(&s, |_, _| {}, RunOptions::default()).unwrap();
     let dir = tempfile::tempdir().unwrap();
     write_run(
         &s,
         result,
         Some(&dir.path().join("run")),
         serde_json::json!({}),
+        None,
     )
     .unwrap()
     .digest

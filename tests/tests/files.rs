@@ -1,5 +1,6 @@
 //! Every shipped file loads; the worlds they describe have the properties DESIGN.md asks for.
 
+use hetsim_engine::RunOptions;
 use hetsim_scene::world::SolidKind;
 use hetsim_scene::{load_robot_model, load_scenario, LoadOptions, Sensor};
 use hetsim_tests::repo;
@@ -210,7 +211,7 @@ fn in_the_village_the_rover_rides_the_terrain_and_the_helicopter_holds_40_m() {
         },
     )
     .unwrap();
-    let result = run(&s, |_, _| {}, None);
+    let result = run(&s, |_, _| {}, RunOptions::default()).unwrap();
     let terrain = s.world.terrain.as_ref().unwrap();
     let (_, dala) = &result.truth[0];
     let (_, ressac) = &result.truth[1];

@@ -26,6 +26,7 @@ fn view(k: Intrinsics, world_from_mount: Pose) -> CameraView {
             world_from_mount.rotation * mount_to_optical(),
         ),
         near_far_m: [0.02, 2000.0],
+        hide_robot: None,
     }
 }
 

@@ -184,6 +184,21 @@ pub struct Rendezvous {
     pub sigma_rad: f64,
 }
 
+/// A camera image.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Image {
+    /// Sim time of exposure, nanoseconds.
+    pub stamp_ns: u64,
+    /// Camera name on the robot; a stereo bench's cameras are `<name>/left`, `<name>/right`.
+    pub sensor: String,
+    /// Width, pixels.
+    pub width: u32,
+    /// Height, pixels.
+    pub height: u32,
+    /// RGB, 8 bits per channel, row-major from the top-left pixel.
+    pub rgb: Vec<u8>,
+}
+
 /// A message from another robot, delivered by the radio.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Delivered {
@@ -232,6 +247,8 @@ pub enum SensorMsg {
     Rendezvous(Rendezvous),
     /// Radio.
     Comms(Delivered),
+    /// Camera.
+    Image(Image),
 }
 
 impl SensorMsg {
@@ -247,6 +264,7 @@ impl SensorMsg {
             SensorMsg::ChildTracks(m) => m.stamp_ns,
             SensorMsg::Rendezvous(m) => m.stamp_ns,
             SensorMsg::Comms(m) => m.stamp_ns,
+            SensorMsg::Image(m) => m.stamp_ns,
         }
     }
 }

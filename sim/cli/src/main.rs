@@ -36,6 +36,33 @@ enum Cmd {
         /// Also record every message, command and ground-truth pose to this MCAP file.
         #[arg(long)]
         record: Option<PathBuf>,
+        /// Write every camera frame (EuRoC layout, with depth and poses) under frames/.
+        #[arg(long)]
+        dump_frames: bool,
+        /// Do not render the cameras (no images reach the robots).
+        #[arg(long)]
+        no_render: bool,
+    },
+    /// Render and write the frames of a time window (EuRoC layout), e.g.
+    /// `hetsim frames scenarios/village.toml --from 10 --to 12 --cameras dala/stereo`.
+    Frames {
+        /// Scenario file.
+        scenario: PathBuf,
+        /// Start of the window, sim seconds.
+        #[arg(long)]
+        from: f64,
+        /// End of the window, sim seconds (the run stops there).
+        #[arg(long)]
+        to: f64,
+        /// Cameras, comma-separated: `robot/camera` or `robot` (default: all).
+        #[arg(long)]
+        cameras: Option<String>,
+        /// Master seed (default: the scenario's).
+        #[arg(long)]
+        seed: Option<u64>,
+        /// Output folder (default: results/runs/<name>-seed<seed>-frames-<from>-<to>).
+        #[arg(long)]
+        out: Option<PathBuf>,
     },
     /// Check scenario and robot files without running anything.
     Validate {
@@ -90,6 +117,10 @@ enum Cmd {
         /// Instead: time one laser scan, and a tick with and without the non-visual sensors.
         #[arg(long)]
         sensors: bool,
+        /// Instead: frames per second with readback (1024x768 mono, 1024x768 stereo pairs,
+        /// 120x88) on the adapter HETSIM_BACKEND / HETSIM_ADAPTER choose.
+        #[arg(long)]
+        render: bool,
     },
 }
 
@@ -111,44 +142,62 @@ fn real_main() -> Result<()> {
             duration,
             out,
             record,
+            dump_frames,
+            no_render,
         } => {
-            let options = LoadOptions {
-                seed,
-                duration_secs: duration,
-            };
-            let loaded = load_scenario(&scenario, &options)?;
-            let bar = progress_bar(&loaded.file.name);
-            let start = wall_clock();
-            let mut recorder = match &record {
-                Some(path) => Some(
-                    hetsim_engine::record::Recorder::create(path).map_err(anyhow::Error::msg)?,
-                ),
-                None => None,
-            };
-            let result = run(
-                &loaded,
-                |tick, total| {
-                    bar.set_length(total);
-                    bar.set_position(tick);
+            let loaded = load_scenario(
+                &scenario,
+                &LoadOptions {
+                    seed,
+                    duration_secs: duration,
                 },
-                recorder.as_mut(),
+            )?;
+            execute(
+                &loaded,
+                out.as_deref(),
+                record.as_deref(),
+                !no_render,
+                dump_frames.then_some((None, None)),
+            )?;
+        }
+        Cmd::Frames {
+            scenario,
+            from,
+            to,
+            cameras,
+            seed,
+            out,
+        } => {
+            anyhow::ensure!(
+                from.is_finite() && to.is_finite() && from >= 0.0 && from <= to,
+                "--from {from} --to {to}: expected 0 <= from <= to seconds"
             );
-            bar.finish_and_clear();
-            if let Some(r) = recorder {
-                let path = r.finish().map_err(anyhow::Error::msg)?;
-                eprintln!("recorded: {}", path.display());
-            }
-            let wall = start.elapsed().as_secs_f64();
-            let timing = serde_json::json!({
-                "wall_secs": wall,
-                "sim_secs": result.metrics.sim_secs,
-                "realtime_factor": result.metrics.sim_secs / wall.max(1e-9),
-                "threads": rayon_threads(),
+            let loaded = load_scenario(
+                &scenario,
+                &LoadOptions {
+                    seed,
+                    duration_secs: Some(to.max(loaded_dt(&scenario)?)),
+                },
+            )?;
+            let list = cameras.map(|c| {
+                c.split(',')
+                    .map(|s| s.trim().to_string())
+                    .filter(|s| !s.is_empty())
+                    .collect::<Vec<_>>()
             });
-            let files =
-                write_run(&loaded, result, out.as_deref(), timing).context("writing results")?;
-            println!("results: {}", files.dir.display());
-            println!("digest: {}", files.digest);
+            let out = out.unwrap_or_else(|| {
+                PathBuf::from("results/runs").join(format!(
+                    "{}-seed{}-frames-{from}-{to}",
+                    loaded.file.name, loaded.seed
+                ))
+            });
+            execute(
+                &loaded,
+                Some(&out),
+                None,
+                true,
+                Some((Some((from, to)), list)),
+            )?;
         }
         Cmd::Validate { files } => {
             anyhow::ensure!(
@@ -223,6 +272,76 @@ fn real_main() -> Result<()> {
         }
         Cmd::Bench {
             scenarios,
+            render: true,
+            ..
+        } => {
+            use hetsim_render::{
+                mount_to_optical, CameraView, Intrinsics, RenderOptions, Renderer,
+            };
+            let mut printed = false;
+            for s in &scenarios {
+                let loaded = load_scenario(s, &LoadOptions::default())?;
+                let mut renderer = Renderer::new(&loaded.world, &RenderOptions::default())
+                    .map_err(anyhow::Error::msg)?;
+                if !printed {
+                    let a = renderer.adapter();
+                    println!("adapter: {} ({}, {})\n", a.name, a.backend, a.driver);
+                    println!("| scenario | 1024x768 frames/s | 1024x768 stereo pairs/s | 120x88 frames/s |");
+                    println!("|---|---|---|---|");
+                    printed = true;
+                }
+                let r = &loaded.robots[0].spec.start;
+                let ground = loaded.world.ground_z(r.x, r.y);
+                let mut rates = Vec::new();
+                for (k, pair) in [
+                    (Intrinsics::from_hfov(1024, 768, 60.0), false),
+                    (Intrinsics::from_hfov(1024, 768, 60.0), true),
+                    (Intrinsics::from_hfov(120, 88, 80.0), false),
+                ] {
+                    let frames = if k.width > 200 { 40 } else { 300 };
+                    let views = |i: usize| {
+                        let yaw = r.yaw_deg.to_radians() + 0.01 * i as f64;
+                        let mount = hetsim_msgs::pose_from_xyz_rpy(
+                            [r.x, r.y, ground + 1.2],
+                            [0.0, 0.1, yaw],
+                        );
+                        let mut v = vec![CameraView {
+                            intrinsics: k,
+                            world_from_optical: nalgebra::Isometry3::from_parts(
+                                mount.translation,
+                                mount.rotation * mount_to_optical(),
+                            ),
+                            near_far_m: [0.02, 3000.0],
+                            hide_robot: None,
+                        }];
+                        if pair {
+                            let right =
+                                mount * hetsim_msgs::pose_from_xyz_rpy([0.0, -0.35, 0.0], [0.0; 3]);
+                            v.push(CameraView {
+                                world_from_optical: nalgebra::Isometry3::from_parts(
+                                    right.translation,
+                                    right.rotation * mount_to_optical(),
+                                ),
+                                ..v[0].clone()
+                            });
+                        }
+                        v
+                    };
+                    renderer.render(&views(0));
+                    let start = wall_clock();
+                    for i in 0..frames {
+                        std::hint::black_box(renderer.render(&views(i)));
+                    }
+                    rates.push(frames as f64 / start.elapsed().as_secs_f64());
+                }
+                println!(
+                    "| {} | {:.1} | {:.1} | {:.1} |",
+                    loaded.file.name, rates[0], rates[1], rates[2]
+                );
+            }
+        }
+        Cmd::Bench {
+            scenarios,
             sensors: true,
             sim_secs,
             ..
@@ -267,14 +386,14 @@ fn real_main() -> Result<()> {
                 }
                 let scan_us = start.elapsed().as_secs_f64() * 1e6 / scans as f64;
                 let start = wall_clock();
-                let result = run(&loaded, |_, _| {}, None);
+                let result = run(&loaded, |_, _| {}, hetsim_engine::RunOptions::default())?;
                 let with = start.elapsed().as_secs_f64() * 1e6 / result.metrics.ticks as f64;
                 let mut bare = loaded.clone();
                 for r in &mut bare.robots {
                     r.model.sensors.clear();
                 }
                 let start = wall_clock();
-                let result = run(&bare, |_, _| {}, None);
+                let result = run(&bare, |_, _| {}, hetsim_engine::RunOptions::default())?;
                 let without = start.elapsed().as_secs_f64() * 1e6 / result.metrics.ticks as f64;
                 println!(
                     "| {} | {scan_us:.0} | {with:.1} | {without:.1} |",
@@ -337,7 +456,7 @@ fn real_main() -> Result<()> {
                     r.model.sensors.clear();
                 }
                 let start = wall_clock();
-                let result = run(&loaded, |_, _| {}, None);
+                let result = run(&loaded, |_, _| {}, hetsim_engine::RunOptions::default())?;
                 let wall = start.elapsed().as_secs_f64();
                 println!(
                     "| {} | {} | {:.0} | {:.3} | {:.0} |",
@@ -410,6 +529,93 @@ fn sweep(
     );
     println!("finished: {} of {} runs", summary.finished, summary.total);
     println!("results: {}", out.display());
+    Ok(())
+}
+
+/// The scenario's tick, for a run that must last at least one tick.
+fn loaded_dt(scenario: &std::path::Path) -> Result<f64> {
+    Ok(load_scenario(scenario, &LoadOptions::default())?
+        .clock
+        .dt_secs())
+}
+
+/// Window and camera filter of a frame dump.
+type DumpSpec = (Option<(f64, f64)>, Option<Vec<String>>);
+
+/// Runs a loaded scenario and writes its results (and frames, and recording).
+fn execute(
+    loaded: &hetsim_scene::Scenario,
+    out: Option<&std::path::Path>,
+    record: Option<&std::path::Path>,
+    render: bool,
+    dump: Option<DumpSpec>,
+) -> Result<()> {
+    let bar = progress_bar(&loaded.file.name);
+    let start = wall_clock();
+    let mut recorder = match record {
+        Some(path) => {
+            Some(hetsim_engine::record::Recorder::create(path).map_err(anyhow::Error::msg)?)
+        }
+        None => None,
+    };
+    let frames_only = dump
+        .as_ref()
+        .is_some_and(|(window, cameras)| window.is_some() || cameras.is_some());
+    let staging = PathBuf::from(
+        out.and_then(|o| o.parent())
+            .filter(|p| !p.as_os_str().is_empty())
+            .unwrap_or(std::path::Path::new("results/runs")),
+    )
+    .join(format!(".frames-{}", std::process::id()));
+    let mut dumper = dump
+        .map(|(window, cameras)| hetsim_engine::frames::FrameDump::new(&staging, window, cameras));
+    let options = hetsim_engine::RunOptions {
+        recorder: recorder.as_mut(),
+        render: render.then(hetsim_render::RenderOptions::default),
+        dump: dumper.as_mut(),
+        frames_only,
+    };
+    let result = run(
+        loaded,
+        |tick, total| {
+            bar.set_length(total);
+            bar.set_position(tick);
+        },
+        options,
+    );
+    bar.finish_and_clear();
+    let result = match result {
+        Ok(r) => r,
+        Err(e) => {
+            let _ = std::fs::remove_dir_all(&staging);
+            return Err(e.into());
+        }
+    };
+    if let Some(r) = recorder {
+        let path = r.finish().map_err(anyhow::Error::msg)?;
+        eprintln!("recorded: {}", path.display());
+    }
+    let wall = start.elapsed().as_secs_f64();
+    let timing = serde_json::json!({
+        "wall_secs": wall,
+        "sim_secs": result.metrics.sim_secs,
+        "realtime_factor": result.metrics.sim_secs / wall.max(1e-9),
+        "threads": rayon_threads(),
+        "frames_written": dumper.as_ref().map_or(0, |d| d.written()),
+    });
+    let files = write_run(
+        loaded,
+        result,
+        out,
+        timing,
+        dumper.is_some().then_some(staging.as_path()),
+    );
+    if files.is_err() {
+        let _ = std::fs::remove_dir_all(&staging);
+    }
+    let files = files.context("writing results")?;
+    println!("results: {}", files.dir.display());
+    println!("digest: {}", files.digest);
     Ok(())
 }
 

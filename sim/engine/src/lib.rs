@@ -10,8 +10,10 @@
 //! digest covers everything the run produced. Wall-clock timings are kept apart, in
 //! `timing.json`, and are not part of the digest.
 
+pub mod cameras;
 pub mod comms;
 pub mod coverage;
+pub mod frames;
 mod output;
 pub mod plot;
 pub mod record;
@@ -22,4 +24,4 @@ mod stacks;
 pub mod sweep;
 
 pub use output::{write_run, RunFiles, WriteError};
-pub use run::{run, Metrics, RobotMetrics, RunResult};
+pub use run::{run, Metrics, RobotMetrics, RunError, RunOptions, RunResult};

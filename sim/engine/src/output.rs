@@ -63,12 +63,15 @@ pub fn tum_line(stamp_ns: u64, pose: &Pose) -> String {
 
 /// Writes `result` to `dest` (or to `results/runs/<name>-seed<seed>-<digest8>` when `dest` is
 /// `None`), adding every output file to the digest first, and returns the directory and
-/// final digest. `timing` is written to `timing.json` outside the digest.
+/// final digest. `timing` is written to `timing.json` outside the digest. `frames`, a folder
+/// of dumped camera frames staged during the run, is moved in as `frames/` (the images are
+/// in the digest as messages already).
 pub fn write_run(
     scenario: &Scenario,
     mut result: RunResult,
     dest: Option<&Path>,
     timing: serde_json::Value,
+    frames: Option<&Path>,
 ) -> Result<RunFiles, WriteError> {
     let mut files: Vec<(String, Vec<u8>)> = Vec::new();
     for (name, poses) in &result.truth {
@@ -95,7 +98,7 @@ pub fn write_run(
             "scenario": scenario.file,
             "robots": scenario.robots.iter().map(|r| json!({"name": r.spec.name, "model": r.model})).collect::<Vec<_>>(),
         },
-        "adapter": serde_json::Value::Null,
+        "adapter": result.adapter.as_ref().map_or(serde_json::Value::Null, |a| json!({"name": a.name, "backend": a.backend, "driver": a.driver})),
         "records": result.digest.records(),
         "digest": digest,
     });
@@ -140,6 +143,9 @@ pub fn write_run(
                 std::fs::create_dir_all(p).map_err(io(p))?;
             }
             std::fs::write(&path, bytes).map_err(io(&path))?;
+        }
+        if let Some(staged) = frames.filter(|f| f.exists()) {
+            std::fs::rename(staged, tmp.join("frames")).map_err(io(staged))?;
         }
         if dir.exists() {
             // An earlier run with the same destination: move it aside, then replace it.

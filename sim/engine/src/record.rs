@@ -4,7 +4,7 @@
 //! follows it and carries its name, so Foxglove Studio shows it natively:
 //! `foxglove.PoseInFrame` (ground truth, `/<robot>/truth`), `foxglove.FrameTransform`
 //! (`/tf`: `world` -> `<robot>/base_link`), `foxglove.LocationFix` (GPS) and
-//! `foxglove.LaserScan`. The others (commands, compass, wheel odometry, IMU, child tracks,
+//! `foxglove.LaserScan`, `foxglove.CompressedImage` (PNG). The others (commands, compass, wheel odometry, IMU, child tracks,
 //! rendezvous, radio) use `hetsim.*` schemas written here.
 //!
 //! Frames follow ROS REP-103: `world` is x east, y north, z up; `<robot>/base_link` is
@@ -70,12 +70,34 @@ fn schema_for(name: &str) -> Value {
         "hetsim.Rendezvous" => {
             json!({"timestamp": time, "frame_id": string, "other": string, "pose": pose, "sigma_m": number, "sigma_rad": number})
         }
+        "foxglove.CompressedImage" => {
+            json!({"timestamp": time, "frame_id": string, "data": {"type": "string", "contentEncoding": "base64"}, "format": string})
+        }
         "hetsim.Comms" => {
             json!({"timestamp": time, "from": string, "to": string, "topic": string, "sent": time, "bytes": {"type": "integer"}})
         }
         _ => json!({}),
     };
     json!({"title": name, "type": "object", "properties": properties})
+}
+
+/// Standard base64 (RFC 4648) with padding.
+fn base64(bytes: &[u8]) -> String {
+    const ALPHABET: &[u8; 64] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+    let mut out = String::with_capacity(bytes.len().div_ceil(3) * 4);
+    for chunk in bytes.chunks(3) {
+        let n = (chunk[0] as u32) << 16
+            | (*chunk.get(1).unwrap_or(&0) as u32) << 8
+            | *chunk.get(2).unwrap_or(&0) as u32;
+        for i in 0..4 {
+            if i <= chunk.len() {
+                out.push(ALPHABET[(n >> (18 - 6 * i) & 63) as usize] as char);
+            } else {
+                out.push('=');
+            }
+        }
+    }
+    out
 }
 
 /// Writes an MCAP file during a run.
@@ -221,6 +243,12 @@ impl Recorder {
                 self.write(&topic, "hetsim.ChildTracks", t, &json!({"timestamp": stamp(t), "frame_id": "world", "tracks": tracks}));
             }
             SensorMsg::Rendezvous(m) => self.write(&topic, "hetsim.Rendezvous", t, &json!({"timestamp": stamp(t), "frame_id": frame, "other": m.other, "pose": pose_json(&m.relative), "sigma_m": m.sigma_m, "sigma_rad": m.sigma_rad})),
+            SensorMsg::Image(m) => {
+                let mut png = Vec::new();
+                let img = image::RgbImage::from_raw(m.width, m.height, m.rgb.clone()).expect("image size matches its pixels");
+                img.write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png).expect("PNG encodes in memory");
+                self.write(&topic, "foxglove.CompressedImage", t, &json!({"timestamp": stamp(t), "frame_id": format!("{robot}/{}", m.sensor.replace('/', "_")), "data": base64(&png), "format": "png"}));
+            }
             SensorMsg::Comms(m) => self.write(&format!("/{robot}/radio"), "hetsim.Comms", t, &json!({"timestamp": stamp(t), "from": m.from, "to": robot, "topic": m.topic, "sent": stamp(m.sent_ns), "bytes": m.payload.len()})),
         }
     }
@@ -239,5 +267,23 @@ impl Recorder {
         std::fs::rename(&self.tmp, &self.path)
             .map_err(|e| format!("{}: {e}", self.path.display()))?;
         Ok(self.path)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn base64_matches_rfc_4648_vectors() {
+        for (plain, coded) in [
+            ("", ""),
+            ("f", "Zg=="),
+            ("fo", "Zm8="),
+            ("foo", "Zm9v"),
+            ("foob", "Zm9vYg=="),
+            ("fooba", "Zm9vYmE="),
+            ("foobar", "Zm9vYmFy"),
+        ] {
+            assert_eq!(super::base64(plain.as_bytes()), coded);
+        }
     }
 }

@@ -1,6 +1,8 @@
 //! Running a scenario tick by tick.
 
+use crate::cameras::Cameras;
 use crate::comms::{Comms, CommsStats};
+use crate::frames::FrameDump;
 use crate::record::Recorder;
 use crate::stacks::build_stack;
 use hetsim_core::{RunDigest, Streams};
@@ -8,6 +10,7 @@ use hetsim_msgs::{
     pose_from_xyz_rpy, Command, Pose, PoseStamped, RobotStack, SensorMsg, StackStatus,
 };
 use hetsim_physics::Physics;
+use hetsim_render::{AdapterSummary, RenderError, RenderOptions};
 use hetsim_scene::Scenario;
 use hetsim_sensors::SensorSuite;
 use rayon::prelude::*;
@@ -77,6 +80,8 @@ pub struct RunResult {
     pub metrics: Metrics,
     /// Digest of every command and message so far (outputs are added when written).
     pub digest: RunDigest,
+    /// The adapter that rendered the cameras, if any.
+    pub adapter: Option<AdapterSummary>,
 }
 
 /// Runs a scenario to its duration. `progress(tick, total)` is called every 1 % or so. With
@@ -87,9 +92,33 @@ pub struct RunResult {
 pub fn run(
     scenario: &Scenario,
     progress: impl FnMut(u64, u64) + Send,
-    recorder: Option<&mut Recorder>,
-) -> RunResult {
-    rayon::scope(|_| run_on_worker(scenario, progress, recorder))
+    options: RunOptions<'_>,
+) -> Result<RunResult, RunError> {
+    rayon::scope(|_| run_on_worker(scenario, progress, options))
+}
+
+/// What a run does besides simulating.
+#[derive(Default)]
+pub struct RunOptions<'a> {
+    /// Record every message, command and ground-truth pose.
+    pub recorder: Option<&'a mut Recorder>,
+    /// Render the robots' cameras on this adapter choice; `None`: no cameras.
+    pub render: Option<RenderOptions>,
+    /// Write camera frames.
+    pub dump: Option<&'a mut FrameDump>,
+    /// Render only the frames the dump wants (for `hetsim frames`).
+    pub frames_only: bool,
+}
+
+/// Why a run stopped.
+#[derive(Debug, thiserror::Error)]
+pub enum RunError {
+    /// No renderer.
+    #[error(transparent)]
+    Render(#[from] RenderError),
+    /// Frames could not be written.
+    #[error("writing frames: {0}")]
+    Frames(String),
 }
 
 /// Where messages go: the robot's inbox, the digest, the recording and the counts.
@@ -115,8 +144,14 @@ impl Post<'_> {
 fn run_on_worker(
     scenario: &Scenario,
     mut progress: impl FnMut(u64, u64),
-    recorder: Option<&mut Recorder>,
-) -> RunResult {
+    options: RunOptions<'_>,
+) -> Result<RunResult, RunError> {
+    let RunOptions {
+        recorder,
+        render,
+        mut dump,
+        frames_only,
+    } = options;
     let clock = scenario.clock;
     let streams = Streams::new(scenario.seed);
     let mut physics = Physics::new(&scenario.world, clock.dt_secs());
@@ -138,6 +173,10 @@ fn run_on_worker(
         .map(|r| r.spec.name.clone())
         .collect();
     let mut sensors = SensorSuite::new(scenario, &streams);
+    let mut cameras = match &render {
+        Some(o) => Cameras::new(scenario, &streams, o)?,
+        None => None,
+    };
     let mut comms = Comms::new(scenario.file.comms.clone(), clock, names.clone(), streams);
     let n = stacks.len();
     let total = clock.ticks_in(scenario.duration_secs);
@@ -225,6 +264,24 @@ fn run_on_worker(
             let mount = mounts.get(&sample.topic);
             post.deliver(sample.robot, &sample.topic, sample.msg, mount);
         }
+        // Cameras (all due ones in one batch).
+        if let Some(cams) = cameras.as_mut() {
+            let stamp = clock.time_ns(after);
+            let wanted = |topic: &str| {
+                !frames_only
+                    || dump
+                        .as_ref()
+                        .is_some_and(|d| d.wants(topic) && d.in_window(stamp))
+            };
+            for shot in cams.capture(&physics, tick, stamp, &wanted) {
+                if let Some(d) = dump.as_deref_mut() {
+                    if d.wants(&shot.topic) && d.in_window(stamp) {
+                        d.write(&shot).map_err(RunError::Frames)?;
+                    }
+                }
+                post.deliver(shot.robot, &shot.topic, SensorMsg::Image(shot.image), None);
+            }
+        }
         // 5. radio deliveries
         for (to, delivered) in comms.deliver(after) {
             post.deliver(to, &radio_topics[to], SensorMsg::Comms(delivered), None);
@@ -238,11 +295,16 @@ fn run_on_worker(
     let mut metrics = metrics(scenario, &physics, &statuses, total, post.digest.records());
     metrics.messages = post.counts;
     metrics.comms = comms.stats.clone();
-    RunResult {
+    if let Some(d) = dump.as_deref() {
+        d.finish().map_err(RunError::Frames)?;
+    }
+    let adapter = cameras.as_ref().map(|c| c.adapter().clone());
+    Ok(RunResult {
         truth: names.into_iter().zip(truth).collect(),
         metrics,
         digest: post.digest,
-    }
+        adapter,
+    })
 }
 
 fn encode<T: Serialize>(value: &T) -> Vec<u8> {

@@ -85,6 +85,8 @@ pub struct CameraView {
     pub world_from_optical: Pose,
     /// Near and far clipping distances, metres.
     pub near_far_m: [f64; 2],
+    /// A robot (index into the last `set_robots`) not to draw: the camera's own.
+    pub hide_robot: Option<usize>,
 }
 
 impl CameraView {
@@ -126,6 +128,7 @@ mod tests {
                 UnitQuaternion::from_euler_angles(0.3, -0.2, 1.1),
             ),
             near_far_m: [0.05, 100.0],
+            hide_robot: None,
         };
         let m = view.view_proj();
         for p in [

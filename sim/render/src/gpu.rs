@@ -90,7 +90,7 @@ pub struct Renderer {
     pipeline: wgpu::RenderPipeline,
     layout: wgpu::BindGroupLayout,
     world: (wgpu::Buffer, wgpu::Buffer, u32),
-    robots: Option<(wgpu::Buffer, wgpu::Buffer, u32)>,
+    robots: Option<(wgpu::Buffer, wgpu::Buffer, Vec<std::ops::Range<u32>>)>,
     targets: Vec<Target>,
     outdoor: bool,
     adapter: AdapterSummary,
@@ -264,9 +264,9 @@ impl Renderer {
         &self.adapter
     }
 
-    /// Robots to draw in the next frames.
+    /// Robots to draw in the next frames (a view can hide one of them: its own robot).
     pub fn set_robots(&mut self, robots: &[RobotDraw]) {
-        let mesh = robots_mesh(robots);
+        let (mesh, ranges) = robots_mesh(robots);
         if mesh.indices.is_empty() {
             self.robots = None;
             return;
@@ -285,7 +285,7 @@ impl Renderer {
                 contents: bytemuck::cast_slice(&mesh.indices),
                 usage: wgpu::BufferUsages::INDEX,
             });
-        self.robots = Some((vb, ib, mesh.indices.len() as u32));
+        self.robots = Some((vb, ib, ranges));
     }
 
     fn target(&mut self, slot: usize, size: (u32, u32)) {
@@ -445,10 +445,18 @@ impl Renderer {
                 });
                 pass.set_pipeline(&self.pipeline);
                 pass.set_bind_group(0, &t.bind_group, &[]);
-                for (vb, ib, count) in std::iter::once(&self.world).chain(self.robots.as_ref()) {
+                let (vb, ib, count) = &self.world;
+                pass.set_vertex_buffer(0, vb.slice(..));
+                pass.set_index_buffer(ib.slice(..), wgpu::IndexFormat::Uint32);
+                pass.draw_indexed(0..*count, 0, 0..1);
+                if let Some((vb, ib, ranges)) = &self.robots {
                     pass.set_vertex_buffer(0, vb.slice(..));
                     pass.set_index_buffer(ib.slice(..), wgpu::IndexFormat::Uint32);
-                    pass.draw_indexed(0..*count, 0, 0..1);
+                    for (robot, range) in ranges.iter().enumerate() {
+                        if v.hide_robot != Some(robot) {
+                            pass.draw_indexed(range.clone(), 0, 0..1);
+                        }
+                    }
                 }
             }
             let (w, h) = t.size;
@@ -476,6 +484,8 @@ impl Renderer {
                 );
             }
         }
+        #[allow(clippy::disallowed_methods)]
+        let t0 = std::time::Instant::now();
         self.queue.submit([encoder.finish()]);
         for t in &self.targets[..views.len()] {
             t.color_buf.map_async(wgpu::MapMode::Read, .., |r| {
@@ -485,12 +495,14 @@ impl Renderer {
                 r.expect("mapping a readback buffer")
             });
         }
+        let t1 = t0.elapsed();
         self.device
             .poll(wgpu::PollType::Wait {
                 submission_index: None,
                 timeout: None,
             })
             .expect("the device finishes its work");
+        let t2 = t0.elapsed();
         let mut frames = Vec::with_capacity(views.len());
         for t in &self.targets[..views.len()] {
             let (w, h) = t.size;
@@ -519,6 +531,14 @@ impl Renderer {
                 rgb,
                 depth_m,
             });
+        }
+        if std::env::var("HETSIM_RENDER_PROFILE").is_ok() {
+            eprintln!(
+                "PROFILE submit {:?} wait {:?} readback {:?}",
+                t1,
+                t2 - t1,
+                t0.elapsed() - t2
+            );
         }
         frames
     }

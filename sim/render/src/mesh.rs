@@ -157,10 +157,12 @@ fn solid_pose(s: &Solid) -> Pose {
     hetsim_msgs::pose_from_xyz_rpy(s.centre, [0.0, 0.0, s.yaw_rad])
 }
 
-/// The robots' mesh for one frame.
-pub(crate) fn robots_mesh(robots: &[RobotDraw]) -> Mesh {
+/// The robots' mesh for one frame, and each robot's range of indices.
+pub(crate) fn robots_mesh(robots: &[RobotDraw]) -> (Mesh, Vec<std::ops::Range<u32>>) {
     let mut mesh = Mesh::default();
+    let mut ranges = Vec::with_capacity(robots.len());
     for r in robots {
+        let start = mesh.indices.len() as u32;
         for p in &r.parts {
             let pose = r.pose * hetsim_msgs::pose_from_xyz_rpy(p.centre, [0.0; 3]);
             let material = if p.hat {
@@ -170,8 +172,9 @@ pub(crate) fn robots_mesh(robots: &[RobotDraw]) -> Mesh {
             };
             mesh.push_box(&pose, p.half_extents, material);
         }
+        ranges.push(start..mesh.indices.len() as u32);
     }
-    mesh
+    (mesh, ranges)
 }
 
 #[cfg(test)]

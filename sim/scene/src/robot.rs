@@ -126,6 +126,10 @@ pub struct Pilot {
     pub aim_tolerance_deg: Option<f64>,
 }
 
+fn unit_gain() -> f64 {
+    1.0
+}
+
 fn default_tracked_model() -> String {
     "ctbot".to_string()
 }
@@ -186,6 +190,9 @@ pub enum Sensor {
         /// Radial distortion coefficients `[k1, k2]`.
         #[serde(default)]
         distortion: Option<[f64; 2]>,
+        /// Exposure gain applied to the rendered intensities.
+        #[serde(default = "unit_gain")]
+        gain: f64,
     },
     /// A rectified stereo bench: left camera at `mount`, right camera `baseline_m` to its right.
     StereoCamera {
@@ -210,6 +217,12 @@ pub enum Sensor {
         /// Gaussian pixel noise, grey levels (0-255).
         #[serde(default)]
         pixel_noise_sigma: f64,
+        /// Radial distortion coefficients `[k1, k2]` (both cameras).
+        #[serde(default)]
+        distortion: Option<[f64; 2]>,
+        /// Exposure gain applied to the rendered intensities.
+        #[serde(default = "unit_gain")]
+        gain: f64,
     },
     /// An omnidirectional camera (the parent's tracker camera).
     OmniCamera {
@@ -568,11 +581,14 @@ impl RobotModel {
                     hfov_deg,
                     intrinsics,
                     pixel_noise_sigma,
+                    distortion,
+                    gain,
                     ..
                 } => {
                     check_image(c, &at, *width_px, *height_px)?;
                     check_optics(c, &at, *hfov_deg, intrinsics.as_ref())?;
                     c.range(&at("pixel_noise_sigma"), *pixel_noise_sigma, 0.0, 64.0)?;
+                    check_lens(c, &at, *distortion, *gain)?;
                 }
                 Sensor::StereoCamera {
                     width_px,
@@ -581,12 +597,15 @@ impl RobotModel {
                     intrinsics,
                     baseline_m,
                     pixel_noise_sigma,
+                    distortion,
+                    gain,
                     ..
                 } => {
                     check_image(c, &at, *width_px, *height_px)?;
                     check_optics(c, &at, *hfov_deg, intrinsics.as_ref())?;
                     c.range(&at("baseline_m"), *baseline_m, 1e-3, 10.0)?;
                     c.range(&at("pixel_noise_sigma"), *pixel_noise_sigma, 0.0, 64.0)?;
+                    check_lens(c, &at, *distortion, *gain)?;
                 }
                 Sensor::OmniCamera {
                     width_px,
@@ -712,6 +731,24 @@ impl RobotModel {
         }
         Ok(())
     }
+}
+
+fn check_lens<'a>(
+    c: &Checker,
+    at: &dyn Fn(&'static str) -> [&'a str; 3],
+    distortion: Option<[f64; 2]>,
+    gain: f64,
+) -> Result<(), SceneError> {
+    if let Some([k1, k2]) = distortion {
+        if !(k1.is_finite() && k2.is_finite() && k1.abs() <= 1.0 && k2.abs() <= 1.0) {
+            return Err(c.error_at(
+                &at("distortion"),
+                format!("{:?}", [k1, k2]),
+                "[k1, k2] with |k1|, |k2| <= 1",
+            ));
+        }
+    }
+    c.range(&at("gain"), gain, 0.1, 10.0)
 }
 
 fn check_image<'a>(
