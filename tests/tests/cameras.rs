@@ -8,58 +8,132 @@ fn rendered_runs_deliver_images_at_their_rates_and_repeat_bit_for_bit() {
     let mut digests = Vec::new();
     for k in 0..2 {
         let out = dir.path().join(format!("r{k}"));
-        let o = hetsim(&["run", "scenarios/lab.toml", "--duration", "2", "--out", out.to_str().unwrap()], &[]);
+        let o = hetsim(
+            &[
+                "run",
+                "scenarios/lab.toml",
+                "--duration",
+                "2",
+                "--out",
+                out.to_str().unwrap(),
+            ],
+            &[],
+        );
         digests.push(printed_digest(&o));
-        let metrics: serde_json::Value = serde_json::from_slice(&std::fs::read(out.join("metrics.json")).unwrap()).unwrap();
+        let metrics: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(out.join("metrics.json")).unwrap()).unwrap();
         let m = &metrics["messages"];
         // 2 s: c't-Bot cameras at 2 Hz, the parent's panorama at 5 Hz.
         assert_eq!(m["child1/camera"], 4, "{m}");
         assert_eq!(m["parent/omni"], 10, "{m}");
-        let manifest: serde_json::Value = serde_json::from_slice(&std::fs::read(out.join("manifest.json")).unwrap()).unwrap();
-        assert!(manifest["adapter"]["name"].as_str().is_some_and(|n| !n.is_empty()), "the manifest names the adapter");
+        let manifest: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(out.join("manifest.json")).unwrap()).unwrap();
+        assert!(
+            manifest["adapter"]["name"]
+                .as_str()
+                .is_some_and(|n| !n.is_empty()),
+            "the manifest names the adapter"
+        );
     }
-    assert_eq!(digests[0], digests[1], "same seed, same adapter: same images, same digest");
+    assert_eq!(
+        digests[0], digests[1],
+        "same seed, same adapter: same images, same digest"
+    );
 }
 
 #[test]
 fn frames_are_dumped_in_the_euroc_layout() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("f");
-    let o = hetsim(&["frames", "scenarios/lab.toml", "--from", "1", "--to", "2", "--cameras", "child2,parent/omni", "--out", out.to_str().unwrap()], &[]);
+    let o = hetsim(
+        &[
+            "frames",
+            "scenarios/lab.toml",
+            "--from",
+            "1",
+            "--to",
+            "2",
+            "--cameras",
+            "child2,parent/omni",
+            "--out",
+            out.to_str().unwrap(),
+        ],
+        &[],
+    );
     printed_digest(&o);
     let frames = out.join("frames");
-    let mut robots: Vec<String> = std::fs::read_dir(&frames).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().to_string()).collect();
+    let mut robots: Vec<String> = std::fs::read_dir(&frames)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().to_string())
+        .collect();
     robots.sort();
-    assert_eq!(robots, vec!["child2", "parent"], "only the cameras asked for");
+    assert_eq!(
+        robots,
+        vec!["child2", "parent"],
+        "only the cameras asked for"
+    );
     let cam = frames.join("child2/camera");
     let csv = std::fs::read_to_string(cam.join("data.csv")).unwrap();
     let lines: Vec<&str> = csv.lines().collect();
     assert_eq!(lines[0], "#timestamp [ns],filename");
     // 2 Hz within [1 s, 2 s]: frames at 1.0, 1.5 and 2.0 s.
-    assert_eq!(&lines[1..], &["1000000000,1000000000.png", "1500000000,1500000000.png", "2000000000,2000000000.png"]);
+    assert_eq!(
+        &lines[1..],
+        &[
+            "1000000000,1000000000.png",
+            "1500000000,1500000000.png",
+            "2000000000,2000000000.png"
+        ]
+    );
     for line in &lines[1..] {
         let name = line.split(',').nth(1).unwrap();
         let img = image::open(cam.join("data").join(name)).unwrap();
         assert_eq!((img.width(), img.height()), (120, 88));
         let depth = image::open(cam.join("depth").join(name)).unwrap();
-        assert!(matches!(depth, image::DynamicImage::ImageLuma16(_)), "depth is 16-bit");
+        assert!(
+            matches!(depth, image::DynamicImage::ImageLuma16(_)),
+            "depth is 16-bit"
+        );
         let d = depth.to_luma16();
         let seen = d.pixels().filter(|p| p.0[0] > 0).count();
         assert!(seen > 100, "depth has surfaces");
-        assert!(d.pixels().all(|p| p.0[0] < 20_000), "millimetres inside an 8 x 4 m lab");
+        assert!(
+            d.pixels().all(|p| p.0[0] < 20_000),
+            "millimetres inside an 8 x 4 m lab"
+        );
     }
     let yaml = std::fs::read_to_string(cam.join("sensor.yaml")).unwrap();
-    for key in ["sensor_type: camera", "T_BS:", "rate_hz: 2", "resolution: [120, 88]", "camera_model: pinhole", "intrinsics: [", "distortion_coefficients:"] {
+    for key in [
+        "sensor_type: camera",
+        "T_BS:",
+        "rate_hz: 2",
+        "resolution: [120, 88]",
+        "camera_model: pinhole",
+        "intrinsics: [",
+        "distortion_coefficients:",
+    ] {
         assert!(yaml.contains(key), "{key} in {yaml}");
     }
     let tum = std::fs::read_to_string(frames.join("child2/camera.tum")).unwrap();
     assert_eq!(tum.lines().count(), 3);
     for line in tum.lines() {
-        assert_eq!(line.split(' ').filter_map(|f| f.parse::<f64>().ok()).count(), 8);
+        assert_eq!(
+            line.split(' ')
+                .filter_map(|f| f.parse::<f64>().ok())
+                .count(),
+            8
+        );
     }
     let omni = std::fs::read_to_string(frames.join("parent/omni/data.csv")).unwrap();
     assert_eq!(omni.lines().count(), 1 + 6, "5 Hz over [1, 2] s");
     let pano = image::open(frames.join("parent/omni/data/1000000000.png")).unwrap();
     assert_eq!((pano.width(), pano.height()), (780, 580));
-    assert!(!dir.path().read_dir().unwrap().any(|e| e.unwrap().file_name().to_string_lossy().starts_with(".frames")), "no staging left");
+    assert!(
+        !dir.path().read_dir().unwrap().any(|e| e
+            .unwrap()
+            .file_name()
+            .to_string_lossy()
+            .starts_with(".frames")),
+        "no staging left"
+    );
 }

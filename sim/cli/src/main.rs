@@ -42,6 +42,12 @@ enum Cmd {
         /// Do not render the cameras (no images reach the robots).
         #[arg(long)]
         no_render: bool,
+        /// Renderer backend: vulkan, gl or any (default: HETSIM_BACKEND, else any).
+        #[arg(long)]
+        backend: Option<String>,
+        /// Use the adapter whose name contains this (default: HETSIM_ADAPTER, else any).
+        #[arg(long)]
+        adapter: Option<String>,
     },
     /// Render and write the frames of a time window (EuRoC layout), e.g.
     /// `hetsim frames scenarios/village.toml --from 10 --to 12 --cameras dala/stereo`.
@@ -63,6 +69,12 @@ enum Cmd {
         /// Output folder (default: results/runs/<name>-seed<seed>-frames-<from>-<to>).
         #[arg(long)]
         out: Option<PathBuf>,
+        /// Renderer backend: vulkan, gl or any (default: HETSIM_BACKEND, else any).
+        #[arg(long)]
+        backend: Option<String>,
+        /// Use the adapter whose name contains this (default: HETSIM_ADAPTER, else any).
+        #[arg(long)]
+        adapter: Option<String>,
     },
     /// Check scenario and robot files without running anything.
     Validate {
@@ -144,6 +156,8 @@ fn real_main() -> Result<()> {
             record,
             dump_frames,
             no_render,
+            backend,
+            adapter,
         } => {
             let loaded = load_scenario(
                 &scenario,
@@ -152,11 +166,12 @@ fn real_main() -> Result<()> {
                     duration_secs: duration,
                 },
             )?;
+            let render = (!no_render).then_some(hetsim_render::RenderOptions { backend, adapter });
             execute(
                 &loaded,
                 out.as_deref(),
                 record.as_deref(),
-                !no_render,
+                render,
                 dump_frames.then_some((None, None)),
             )?;
         }
@@ -167,6 +182,8 @@ fn real_main() -> Result<()> {
             cameras,
             seed,
             out,
+            backend,
+            adapter,
         } => {
             anyhow::ensure!(
                 from.is_finite() && to.is_finite() && from >= 0.0 && from <= to,
@@ -195,7 +212,7 @@ fn real_main() -> Result<()> {
                 &loaded,
                 Some(&out),
                 None,
-                true,
+                Some(hetsim_render::RenderOptions { backend, adapter }),
                 Some((Some((from, to)), list)),
             )?;
         }
@@ -547,7 +564,7 @@ fn execute(
     loaded: &hetsim_scene::Scenario,
     out: Option<&std::path::Path>,
     record: Option<&std::path::Path>,
-    render: bool,
+    render: Option<hetsim_render::RenderOptions>,
     dump: Option<DumpSpec>,
 ) -> Result<()> {
     let bar = progress_bar(&loaded.file.name);
@@ -571,7 +588,7 @@ fn execute(
         .map(|(window, cameras)| hetsim_engine::frames::FrameDump::new(&staging, window, cameras));
     let options = hetsim_engine::RunOptions {
         recorder: recorder.as_mut(),
-        render: render.then(hetsim_render::RenderOptions::default),
+        render,
         dump: dumper.as_mut(),
         frames_only,
     };

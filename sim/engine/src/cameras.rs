@@ -24,8 +24,11 @@ use nalgebra::{Isometry3, UnitQuaternion, Vector3};
 use rand_distr::{Distribution, StandardNormal};
 
 enum Model {
+    /// `render`: the intrinsics actually rendered (padded beyond the image when distortion
+    /// needs rays outside its undistorted field of view).
     Pinhole {
         distortion: Option<[f64; 2]>,
+        render: Intrinsics,
     },
     /// The panorama's pixels: (cube face, face u, face v, range / depth), computed once.
     Omni {
@@ -175,9 +178,10 @@ impl Cameras {
                         body_from_mount: mount,
                         noise: *pixel_noise_sigma,
                         gain: *gain,
-                        model: Model::Pinhole {
-                            distortion: *distortion,
-                        },
+                        model: pinhole(
+                            intrinsics_of(*width_px, *height_px, *hfov_deg, intrinsics.as_ref()),
+                            *distortion,
+                        ),
                     }),
                     Sensor::StereoCamera {
                         width_px,
@@ -207,9 +211,15 @@ impl Cameras {
                                     * pose_from_xyz_rpy([0.0, offset, 0.0], [0.0; 3]),
                                 noise: *pixel_noise_sigma,
                                 gain: *gain,
-                                model: Model::Pinhole {
-                                    distortion: *distortion,
-                                },
+                                model: pinhole(
+                                    intrinsics_of(
+                                        *width_px,
+                                        *height_px,
+                                        *hfov_deg,
+                                        intrinsics.as_ref(),
+                                    ),
+                                    *distortion,
+                                ),
                             });
                         }
                     }
@@ -323,8 +333,8 @@ impl Cameras {
             let world_from_mount = physics.pose(rig.robot) * rig.body_from_mount;
             let start = views.len();
             match &rig.model {
-                Model::Pinhole { .. } => views.push(CameraView {
-                    intrinsics: rig.intrinsics,
+                Model::Pinhole { render, .. } => views.push(CameraView {
+                    intrinsics: *render,
                     world_from_optical: Isometry3::from_parts(
                         world_from_mount.translation,
                         world_from_mount.rotation * mount_to_optical(),
@@ -355,12 +365,13 @@ impl Cameras {
         for (k, start, end, world_from_mount) in spans {
             let rig = &mut self.rigs[k];
             let (mut rgb, depth) = match &rig.model {
-                Model::Pinhole { distortion: None } => {
-                    (frames[start].rgb.clone(), frames[start].depth_m.clone())
-                }
+                Model::Pinhole {
+                    distortion: None, ..
+                } => (frames[start].rgb.clone(), frames[start].depth_m.clone()),
                 Model::Pinhole {
                     distortion: Some(d),
-                } => distort(&frames[start], &rig.intrinsics, *d),
+                    render,
+                } => distort(&frames[start], &rig.intrinsics, render, *d),
                 Model::Omni { lookup, .. } => panorama(&frames[start..end], lookup),
             };
             for c in rgb.iter_mut() {
@@ -378,6 +389,7 @@ impl Cameras {
             let distortion = match &rig.model {
                 Model::Pinhole {
                     distortion: Some(d),
+                    ..
                 } => *d,
                 _ => [0.0, 0.0],
             };
@@ -437,23 +449,73 @@ fn bilinear(f: &Frame, u: f64, v: f64) -> Option<([f64; 3], f32)> {
     Some((out, depth))
 }
 
-/// Applies radial distortion: each output pixel samples the undistorted render at the
+/// The undistorted normalized coordinates of distorted normalized `(xd, yd)`.
+fn undistort(xd: f64, yd: f64, [k1, k2]: [f64; 2]) -> (f64, f64) {
+    let (mut xu, mut yu) = (xd, yd);
+    for _ in 0..20 {
+        let r2 = xu * xu + yu * yu;
+        let s = 1.0 + k1 * r2 + k2 * r2 * r2;
+        xu = xd / s;
+        yu = yd / s;
+    }
+    (xu, yu)
+}
+
+/// A pinhole model; with distortion, the render is padded so that every image pixel's
+/// undistorted ray falls inside it.
+fn pinhole(k: Intrinsics, distortion: Option<[f64; 2]>) -> Model {
+    let Some(d) = distortion else {
+        return Model::Pinhole {
+            distortion,
+            render: k,
+        };
+    };
+    let (mut left, mut right, mut top, mut bottom) = (0.0f64, 0.0f64, 0.0f64, 0.0f64);
+    let (w, h) = (k.width as f64 - 1.0, k.height as f64 - 1.0);
+    let border = (0..=64).flat_map(|i| {
+        let t = i as f64 / 64.0;
+        [(t * w, 0.0), (t * w, h), (0.0, t * h), (w, t * h)]
+    });
+    for (u, v) in border {
+        let (xu, yu) = undistort((u - k.u0) / k.alpha_u, (v - k.v0) / k.alpha_v, d);
+        let (ru, rv) = (k.alpha_u * xu + k.u0, k.alpha_v * yu + k.v0);
+        left = left.max(-ru);
+        right = right.max(ru - w);
+        top = top.max(-rv);
+        bottom = bottom.max(rv - h);
+    }
+    let (pl, pr, pt, pb) = [left, right, top, bottom]
+        .map(|m| m.ceil() as u32 + 1)
+        .into();
+    let render = Intrinsics {
+        width: k.width + pl + pr,
+        height: k.height + pt + pb,
+        u0: k.u0 + pl as f64,
+        v0: k.v0 + pt as f64,
+        ..k
+    };
+    Model::Pinhole { distortion, render }
+}
+
+/// Applies radial distortion: each output pixel samples the (padded) undistorted render at the
 /// undistorted position of its ray (fixed-point inversion of the distortion).
-fn distort(f: &Frame, k: &Intrinsics, [k1, k2]: [f64; 2]) -> (Vec<u8>, Vec<f32>) {
-    let mut rgb = vec![0u8; f.rgb.len()];
-    let mut depth = vec![0f32; f.depth_m.len()];
+fn distort(f: &Frame, k: &Intrinsics, render: &Intrinsics, d: [f64; 2]) -> (Vec<u8>, Vec<f32>) {
+    let n = (k.width * k.height) as usize;
+    let mut rgb = vec![0u8; n * 3];
+    let mut depth = vec![0f32; n];
     for v in 0..k.height {
         for u in 0..k.width {
-            let (xd, yd) = ((u as f64 - k.u0) / k.alpha_u, (v as f64 - k.v0) / k.alpha_v);
-            let (mut xu, mut yu) = (xd, yd);
-            for _ in 0..20 {
-                let r2 = xu * xu + yu * yu;
-                let s = 1.0 + k1 * r2 + k2 * r2 * r2;
-                xu = xd / s;
-                yu = yd / s;
-            }
+            let (xu, yu) = undistort(
+                (u as f64 - k.u0) / k.alpha_u,
+                (v as f64 - k.v0) / k.alpha_v,
+                d,
+            );
             let i = (v * k.width + u) as usize;
-            if let Some((c, d)) = bilinear(f, k.alpha_u * xu + k.u0, k.alpha_v * yu + k.v0) {
+            if let Some((c, d)) = bilinear(
+                f,
+                render.alpha_u * xu + render.u0,
+                render.alpha_v * yu + render.v0,
+            ) {
                 for ch in 0..3 {
                     rgb[i * 3 + ch] = c[ch].round() as u8;
                 }
@@ -519,4 +581,91 @@ fn panorama(faces: &[Frame], lookup: &[(u8, f32, f32, f32)]) -> (Vec<u8>, Vec<f3
         }
     }
     (rgb, depth)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A synthetic render whose red channel is the column and green the row (both < 256).
+    fn ramp(k: &Intrinsics) -> Frame {
+        let mut rgb = Vec::new();
+        for v in 0..k.height {
+            for u in 0..k.width {
+                rgb.extend([u as u8, v as u8, 255]);
+            }
+        }
+        Frame {
+            width: k.width,
+            height: k.height,
+            rgb,
+            depth_m: vec![1.0; (k.width * k.height) as usize],
+        }
+    }
+
+    #[test]
+    fn radial_distortion_samples_where_the_model_says() {
+        let k = Intrinsics {
+            width: 120,
+            height: 100,
+            alpha_u: 90.0,
+            alpha_v: 90.0,
+            u0: 59.5,
+            v0: 49.5,
+        };
+        let (k1, k2) = (-0.2, 0.05);
+        let Model::Pinhole { render, .. } = pinhole(k, Some([k1, k2])) else {
+            unreachable!()
+        };
+        assert!(
+            render.width > k.width && render.height > k.height,
+            "barrel distortion needs a wider render"
+        );
+        assert!(
+            render.width < 256 && render.height < 256,
+            "the ramp encodes coordinates in a byte"
+        );
+        let (rgb, _) = distort(&ramp(&render), &k, &render, [k1, k2]);
+        assert_eq!(rgb.len(), (k.width * k.height * 3) as usize);
+        assert!(
+            rgb.chunks_exact(3).all(|p| p[2] == 255),
+            "every pixel has data: no black corners"
+        );
+        for &(u, v) in &[(0u32, 0u32), (119, 5), (60, 50), (10, 99), (100, 80)] {
+            // Forward model from the sampled (undistorted) point must give back the pixel.
+            let i = ((v * k.width + u) * 3) as usize;
+            let (su, sv) = (rgb[i] as f64, rgb[i + 1] as f64);
+            let (xu, yu) = (
+                (su - render.u0) / render.alpha_u,
+                (sv - render.v0) / render.alpha_v,
+            );
+            let r2 = xu * xu + yu * yu;
+            let s = 1.0 + k1 * r2 + k2 * r2 * r2;
+            let (ud, vd) = (k.alpha_u * xu * s + k.u0, k.alpha_v * yu * s + k.v0);
+            assert!(
+                (ud - u as f64).abs() < 1.0 && (vd - v as f64).abs() < 1.0,
+                "pixel ({u}, {v}) sampled ({su}, {sv}) -> ({ud:.2}, {vd:.2})"
+            );
+        }
+        // Barrel distortion (k1 < 0): the corner samples from beyond the image's own corner.
+        assert!(rgb[0] as f64 + 0.5 < render.u0 - k.u0 && rgb[1] as f64 + 0.5 < render.v0 - k.v0);
+    }
+
+    #[test]
+    fn panorama_centre_column_looks_forward_and_the_top_row_up() {
+        let face = Intrinsics::from_hfov(64, 64, 90.0);
+        let lookup = panorama_lookup(&face, 360, 180, [-1.5, 1.5]);
+        // Centre column, middle row: straight ahead, face 0 at its centre.
+        let (f, u, v, scale) = lookup[90 * 360 + 180];
+        assert_eq!(f, 0);
+        assert!(
+            (u as f64 - 31.5).abs() < 1.0
+                && (v as f64 - 31.5).abs() < 1.0
+                && (scale - 1.0).abs() < 0.01
+        );
+        // Quarter of the way across: 90 deg to the left, face 1.
+        assert_eq!(lookup[90 * 360 + 90].0, 1);
+        // Top row: looking up, face 4.
+        assert_eq!(lookup[180].0, 4);
+    }
 }
