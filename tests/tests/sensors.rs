@@ -25,19 +25,7 @@ fn scenario(indoor: &str, robots: &str) -> Scenario {
 }
 
 fn physics_for(s: &Scenario) -> Physics {
-    let mut physics = Physics::new(&s.world, s.clock.dt_secs());
-    let streams = Streams::new(s.seed);
-    for r in &s.robots {
-        physics.add_robot(
-            &r.model,
-            r.spec.start.x,
-            r.spec.start.y,
-            r.spec.start.z,
-            r.spec.start.yaw_deg.to_radians(),
-            streams.stream("drive"),
-        );
-    }
-    physics
+    Physics::for_scenario(s, &Streams::new(s.seed))
 }
 
 /// Samples every sensor for `ticks` ticks of a world where nothing moves.

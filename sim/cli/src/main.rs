@@ -373,18 +373,10 @@ fn real_main() -> Result<()> {
                         duration_secs: Some(sim_secs),
                     },
                 )?;
-                let mut physics =
-                    hetsim_physics::Physics::new(&loaded.world, loaded.clock.dt_secs());
-                for r in &loaded.robots {
-                    physics.add_robot(
-                        &r.model,
-                        r.spec.start.x,
-                        r.spec.start.y,
-                        r.spec.start.z,
-                        r.spec.start.yaw_deg.to_radians(),
-                        hetsim_core::Streams::new(0).stream("bench"),
-                    );
-                }
+                let mut physics = hetsim_physics::Physics::for_scenario(
+                    &loaded,
+                    &hetsim_core::Streams::new(loaded.seed),
+                );
                 physics.step();
                 let origin = physics.pose(0).translation.vector;
                 let o = [origin.x, origin.y, origin.z + 0.3];

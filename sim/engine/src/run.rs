@@ -154,19 +154,12 @@ fn run_on_worker(
     } = options;
     let clock = scenario.clock;
     let streams = Streams::new(scenario.seed);
-    let mut physics = Physics::new(&scenario.world, clock.dt_secs());
-    let mut stacks: Vec<Box<dyn RobotStack>> = Vec::new();
-    for r in &scenario.robots {
-        physics.add_robot(
-            &r.model,
-            r.spec.start.x,
-            r.spec.start.y,
-            r.spec.start.z,
-            r.spec.start.yaw_deg.to_radians(),
-            streams.stream(&format!("{}/drive/wheel_error", r.spec.name)),
-        );
-        stacks.push(build_stack(scenario, r));
-    }
+    let mut physics = Physics::for_scenario(scenario, &streams);
+    let mut stacks: Vec<Box<dyn RobotStack>> = scenario
+        .robots
+        .iter()
+        .map(|r| build_stack(scenario, r))
+        .collect();
     let names: Vec<String> = scenario
         .robots
         .iter()

@@ -141,6 +141,23 @@ impl Physics {
         }
     }
 
+    /// The world of a scenario with every robot at its start, in scenario order; each robot's
+    /// drive draws from the stream `<robot>/drive/wheel_error`.
+    pub fn for_scenario(scenario: &hetsim_scene::Scenario, streams: &hetsim_core::Streams) -> Self {
+        let mut physics = Self::new(&scenario.world, scenario.clock.dt_secs());
+        for r in &scenario.robots {
+            physics.add_robot(
+                &r.model,
+                r.spec.start.x,
+                r.spec.start.y,
+                r.spec.start.z,
+                r.spec.start.yaw_deg.to_radians(),
+                streams.stream(&format!("{}/drive/wheel_error", r.spec.name)),
+            );
+        }
+        physics
+    }
+
     /// Adds a robot at `(x, y)` with heading `yaw_rad`, `z_above_ground` metres above the
     /// ground (helicopters). Returns its index.
     pub fn add_robot(
