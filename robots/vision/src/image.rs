@@ -1,0 +1,139 @@
+//! Grey images and the pinhole model used by the vision code.
+
+use nalgebra::Vector3;
+
+/// A grey image, row-major, intensities 0-255 as `f32`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Gray {
+    /// Width, pixels.
+    pub width: usize,
+    /// Height, pixels.
+    pub height: usize,
+    /// Intensities.
+    pub data: Vec<f32>,
+}
+
+impl Gray {
+    /// Luminance (ITU-R BT.601 weights) of an RGB image.
+    pub fn from_rgb(width: usize, height: usize, rgb: &[u8]) -> Self {
+        let data = rgb
+            .chunks_exact(3)
+            .map(|p| 0.299 * p[0] as f32 + 0.587 * p[1] as f32 + 0.114 * p[2] as f32)
+            .collect();
+        Self {
+            width,
+            height,
+            data,
+        }
+    }
+
+    /// The intensity at integer `(x, y)`.
+    #[inline]
+    pub fn at(&self, x: usize, y: usize) -> f32 {
+        self.data[y * self.width + x]
+    }
+
+    /// Bilinear intensity at `(x, y)`, if inside.
+    pub fn sample(&self, x: f64, y: f64) -> Option<f32> {
+        if x < 0.0 || y < 0.0 || x > (self.width - 1) as f64 || y > (self.height - 1) as f64 {
+            return None;
+        }
+        let (x0, y0) = (x.floor() as usize, y.floor() as usize);
+        let (x1, y1) = ((x0 + 1).min(self.width - 1), (y0 + 1).min(self.height - 1));
+        let (tx, ty) = ((x - x0 as f64) as f32, (y - y0 as f64) as f32);
+        let top = self.at(x0, y0) * (1.0 - tx) + self.at(x1, y0) * tx;
+        let bottom = self.at(x0, y1) * (1.0 - tx) + self.at(x1, y1) * tx;
+        Some(top * (1.0 - ty) + bottom * ty)
+    }
+}
+
+/// A pinhole camera: `u = αu x/z + u0`, `v = αv y/z + v0`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Camera {
+    /// Focal length along u, pixels.
+    pub alpha_u: f64,
+    /// Focal length along v, pixels.
+    pub alpha_v: f64,
+    /// Principal point u0.
+    pub u0: f64,
+    /// Principal point v0.
+    pub v0: f64,
+}
+
+impl Camera {
+    /// Pixel of a point in the optical frame (z > 0).
+    pub fn project(&self, p: &Vector3<f64>) -> Option<[f64; 2]> {
+        (p.z > 1e-9).then(|| {
+            [
+                self.alpha_u * p.x / p.z + self.u0,
+                self.alpha_v * p.y / p.z + self.v0,
+            ]
+        })
+    }
+
+    /// Jacobian of [`Camera::project`] with respect to the point, 2 x 3, row-major.
+    pub fn project_jacobian(&self, p: &Vector3<f64>) -> [[f64; 3]; 2] {
+        let iz = 1.0 / p.z;
+        [
+            [self.alpha_u * iz, 0.0, -self.alpha_u * p.x * iz * iz],
+            [0.0, self.alpha_v * iz, -self.alpha_v * p.y * iz * iz],
+        ]
+    }
+
+    /// The point at depth `z` (along the optical axis) seen at pixel `(u, v)`.
+    pub fn back_project(&self, u: f64, v: f64, z: f64) -> Vector3<f64> {
+        Vector3::new(
+            (u - self.u0) / self.alpha_u * z,
+            (v - self.v0) / self.alpha_v * z,
+            z,
+        )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::{RngExt, SeedableRng};
+
+    #[test]
+    fn project_back_project_round_trip_and_jacobian_match_finite_differences() {
+        let cam = Camera {
+            alpha_u: 700.0,
+            alpha_v: 690.0,
+            u0: 511.5,
+            v0: 383.5,
+        };
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+        for _ in 0..1000 {
+            let p = Vector3::new(
+                rng.random_range(-20.0..20.0),
+                rng.random_range(-20.0..20.0),
+                rng.random_range(0.5..200.0),
+            );
+            let [u, v] = cam.project(&p).unwrap();
+            let back = cam.back_project(u, v, p.z);
+            assert!((back - p).norm() < 1e-9 * p.norm().max(1.0));
+            let j = cam.project_jacobian(&p);
+            for k in 0..3 {
+                let h = 1e-6 * p.norm().max(1.0);
+                let mut q = p;
+                q[k] += h;
+                let [u2, v2] = cam.project(&q).unwrap();
+                let mut r = p;
+                r[k] -= h;
+                let [u1, v1] = cam.project(&r).unwrap();
+                let (du, dv) = ((u2 - u1) / (2.0 * h), (v2 - v1) / (2.0 * h));
+                assert!(
+                    (du - j[0][k]).abs() < 1e-4 * (1.0 + j[0][k].abs()),
+                    "du/dp{k}: {du} vs {}",
+                    j[0][k]
+                );
+                assert!(
+                    (dv - j[1][k]).abs() < 1e-4 * (1.0 + j[1][k].abs()),
+                    "dv/dp{k}: {dv} vs {}",
+                    j[1][k]
+                );
+            }
+        }
+    }
+}

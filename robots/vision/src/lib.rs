@@ -1,0 +1,22 @@
+//! Image features and stereo visual odometry for the SLAM stack of seed
+//! `000_955784a9d1cf66bf` (Section V, "Involved processes").
+//!
+//! * [`harris`]: Harris interest points, and the seed's heuristic of a regular 3 x 3
+//!   partition of the image with at least two tracked landmarks per region;
+//! * [`matching`]: zero-mean normalized cross-correlation (ZNCC) of patches, searched inside a
+//!   predicted ellipse given by the caller's covariance;
+//! * [`stereo`]: points matched along the rows of a rectified stereo pair, triangulated to
+//!   3D points in the left camera's optical frame;
+//! * [`vo`]: frame-to-frame motion from matched 3D points, RANSAC then Gauss-Newton on the
+//!   reprojection error, with a covariance, as the EKF's motion prediction.
+//!
+//! Everything works on [`Gray`] images in the optical frame convention (x right, y down,
+//! z forward; pixel centres at integer coordinates).
+
+pub mod harris;
+pub mod image;
+pub mod matching;
+pub mod stereo;
+pub mod vo;
+
+pub use image::{Camera, Gray};

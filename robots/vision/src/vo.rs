@@ -1,0 +1,263 @@
+//! Frame-to-frame motion of a stereo bench from matched 3D points.
+//!
+//! Points triangulated at the previous frame are matched in the current left image (and
+//! triangulated again there). RANSAC draws three correspondences, fits the rigid motion
+//! (Kabsch), and counts the points whose reprojection into the current image falls within
+//! `inlier_px`; the best hypothesis is refined by Gauss-Newton on the reprojection errors of
+//! its inliers. The covariance of the motion is `σ² (JᵀJ)⁻¹`, σ² the residual variance,
+//! expressed on a left perturbation `exp(ξ) T` with `ξ = (ρ, φ)` (translation, rotation).
+
+use crate::Camera;
+use hetsim_msgs::Pose;
+use nalgebra::{
+    Isometry3, Matrix3, Matrix6, Rotation3, Translation3, UnitQuaternion, Vector3, Vector6,
+};
+use rand::RngExt;
+
+/// One correspondence.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Correspondence {
+    /// The point in the previous left camera frame.
+    pub previous: Vector3<f64>,
+    /// The point in the current left camera frame (from stereo), if triangulated.
+    pub current: Vector3<f64>,
+    /// Where it was matched in the current left image.
+    pub pixel: [f64; 2],
+}
+
+/// An estimated motion.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Motion {
+    /// `current_from_previous`: maps previous-frame coordinates into the current frame.
+    pub current_from_previous: Pose,
+    /// Covariance of `ξ` (translation, rotation) of a left perturbation of the motion.
+    pub covariance: Matrix6<f64>,
+    /// Inliers used in the refinement.
+    pub inliers: usize,
+    /// Root-mean-square reprojection error of the inliers, pixels.
+    pub rms_px: f64,
+}
+
+/// The rigid motion best mapping `a` onto `b` (least squares, Kabsch/Umeyama without scale).
+pub fn kabsch(a: &[Vector3<f64>], b: &[Vector3<f64>]) -> Option<Pose> {
+    if a.len() < 3 || a.len() != b.len() {
+        return None;
+    }
+    let n = a.len() as f64;
+    let ca = a.iter().sum::<Vector3<f64>>() / n;
+    let cb = b.iter().sum::<Vector3<f64>>() / n;
+    let h: Matrix3<f64> = a
+        .iter()
+        .zip(b)
+        .map(|(p, q)| (p - ca) * (q - cb).transpose())
+        .sum();
+    let svd = h.svd(true, true);
+    let (u, v_t) = (svd.u?, svd.v_t?);
+    let v = v_t.transpose();
+    let d = (v * u.transpose()).determinant().signum();
+    let r = v * Matrix3::from_diagonal(&Vector3::new(1.0, 1.0, d)) * u.transpose();
+    let rot = UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(r));
+    let t = cb - rot * ca;
+    Some(Isometry3::from_parts(Translation3::from(t), rot))
+}
+
+fn skew(v: &Vector3<f64>) -> Matrix3<f64> {
+    Matrix3::new(0.0, -v.z, v.y, v.z, 0.0, -v.x, -v.y, v.x, 0.0)
+}
+
+fn residual(cam: &Camera, t: &Pose, c: &Correspondence) -> Option<[f64; 2]> {
+    let p = t * nalgebra::Point3::from(c.previous);
+    cam.project(&p.coords)
+        .map(|[u, v]| [u - c.pixel[0], v - c.pixel[1]])
+}
+
+/// Estimates the motion; `None` with fewer than `min_inliers` inliers.
+pub fn estimate(
+    cam: &Camera,
+    data: &[Correspondence],
+    iterations: usize,
+    inlier_px: f64,
+    min_inliers: usize,
+    rng: &mut impl rand::Rng,
+) -> Option<Motion> {
+    if data.len() < 3 {
+        return None;
+    }
+    let count = |t: &Pose| {
+        data.iter()
+            .filter(|c| residual(cam, t, c).is_some_and(|r| r[0].hypot(r[1]) < inlier_px))
+            .count()
+    };
+    let mut best: Option<(usize, Pose)> = None;
+    for _ in 0..iterations {
+        let i = rng.random_range(0..data.len());
+        let j = rng.random_range(0..data.len());
+        let k = rng.random_range(0..data.len());
+        if i == j || j == k || i == k {
+            continue;
+        }
+        let a = [data[i].previous, data[j].previous, data[k].previous];
+        let b = [data[i].current, data[j].current, data[k].current];
+        let Some(t) = kabsch(&a, &b) else { continue };
+        let n = count(&t);
+        if best.as_ref().is_none_or(|(m, _)| n > *m) {
+            best = Some((n, t));
+        }
+    }
+    let (_, mut t) = best?;
+    let mut inliers: Vec<&Correspondence> = Vec::new();
+    let mut jtj = Matrix6::zeros();
+    let mut sum_sq = 0.0;
+    for _ in 0..8 {
+        inliers = data
+            .iter()
+            .filter(|c| residual(cam, &t, c).is_some_and(|r| r[0].hypot(r[1]) < inlier_px))
+            .collect();
+        if inliers.len() < min_inliers.max(3) {
+            return None;
+        }
+        jtj = Matrix6::zeros();
+        let mut jtr = Vector6::zeros();
+        sum_sq = 0.0;
+        for c in &inliers {
+            let p = t * nalgebra::Point3::from(c.previous);
+            let Some(r) = residual(cam, &t, c) else {
+                continue;
+            };
+            let jp = cam.project_jacobian(&p.coords);
+            // d p / d xi for p' = exp(xi) p: [I, -[p]x].
+            let dp = {
+                let mut m = nalgebra::Matrix3x6::zeros();
+                m.fixed_view_mut::<3, 3>(0, 0)
+                    .copy_from(&Matrix3::identity());
+                m.fixed_view_mut::<3, 3>(0, 3)
+                    .copy_from(&(-skew(&p.coords)));
+                m
+            };
+            let jpm = nalgebra::Matrix2x3::new(
+                jp[0][0], jp[0][1], jp[0][2], jp[1][0], jp[1][1], jp[1][2],
+            );
+            let j = jpm * dp;
+            let rv = nalgebra::Vector2::new(r[0], r[1]);
+            jtj += j.transpose() * j;
+            jtr += j.transpose() * rv;
+            sum_sq += r[0] * r[0] + r[1] * r[1];
+        }
+        let step = jtj.cholesky().map(|ch| ch.solve(&(-jtr)))?;
+        let delta = Isometry3::from_parts(
+            Translation3::new(step[0], step[1], step[2]),
+            UnitQuaternion::from_scaled_axis(Vector3::new(step[3], step[4], step[5])),
+        );
+        t = delta * t;
+        if step.norm() < 1e-10 {
+            break;
+        }
+    }
+    let dof = (2 * inliers.len()).saturating_sub(6).max(1) as f64;
+    let sigma2 = sum_sq / dof;
+    let covariance = jtj.try_inverse()? * sigma2.max(1e-6);
+    Some(Motion {
+        current_from_previous: t,
+        covariance,
+        inliers: inliers.len(),
+        rms_px: (sum_sq / inliers.len().max(1) as f64).sqrt(),
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::SeedableRng;
+    use rand_distr_free::normal;
+
+    /// Box-Muller, to keep this crate's dependencies small.
+    mod rand_distr_free {
+        use rand::RngExt;
+        pub fn normal(rng: &mut impl rand::Rng) -> f64 {
+            let u1: f64 = rng.random_range(1e-12..1.0);
+            let u2: f64 = rng.random_range(0.0..1.0);
+            (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
+        }
+    }
+
+    #[test]
+    fn recovers_a_known_motion_despite_outliers_with_a_sensible_covariance() {
+        let cam = Camera {
+            alpha_u: 600.0,
+            alpha_v: 600.0,
+            u0: 320.0,
+            v0: 240.0,
+        };
+        let truth: Pose = Isometry3::from_parts(
+            Translation3::new(0.05, -0.02, -0.4),
+            UnitQuaternion::from_euler_angles(0.01, -0.03, 0.02),
+        );
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
+        let mut data = Vec::new();
+        for k in 0..200 {
+            let prev = Vector3::new(
+                rng.random_range(-8.0..8.0),
+                rng.random_range(-4.0..4.0),
+                rng.random_range(4.0..30.0),
+            );
+            let cur = truth * nalgebra::Point3::from(prev);
+            let Some([u, v]) = cam.project(&cur.coords) else {
+                continue;
+            };
+            let noise = [0.3 * normal(&mut rng), 0.3 * normal(&mut rng)];
+            let mut c = Correspondence {
+                previous: prev,
+                current: cur.coords + Vector3::new(0.0, 0.0, 0.02 * cur.z * normal(&mut rng)),
+                pixel: [u + noise[0], v + noise[1]],
+            };
+            if k % 5 == 0 {
+                c.pixel = [rng.random_range(0.0..640.0), rng.random_range(0.0..480.0)];
+                // 20 % outliers
+            }
+            data.push(c);
+        }
+        let m = estimate(&cam, &data, 200, 2.0, 20, &mut rng).unwrap();
+        let err = m.current_from_previous.inverse() * truth;
+        assert!(
+            err.translation.vector.norm() < 0.02,
+            "translation error {}",
+            err.translation.vector.norm()
+        );
+        assert!(
+            err.rotation.angle() < 0.002,
+            "rotation error {}",
+            err.rotation.angle()
+        );
+        assert!(
+            m.inliers >= 150 && m.inliers <= 165,
+            "{} inliers of ~160 good",
+            m.inliers
+        );
+        assert!(
+            (m.rms_px - 0.3 * std::f64::consts::SQRT_2).abs() < 0.1,
+            "rms {}",
+            m.rms_px
+        );
+        assert!(m.covariance.cholesky().is_some(), "positive definite");
+        // The true error lies within a plausible multiple of the estimated spread.
+        assert!(m.covariance[(2, 2)].sqrt() < 0.05 && m.covariance[(2, 2)].sqrt() > 1e-4);
+    }
+
+    #[test]
+    fn kabsch_is_exact_without_noise() {
+        let t: Pose = Isometry3::from_parts(
+            Translation3::new(1.0, 2.0, 3.0),
+            UnitQuaternion::from_euler_angles(0.3, -0.4, 1.0),
+        );
+        let a: Vec<Vector3<f64>> = (0..10)
+            .map(|i| Vector3::new(i as f64, (i * i) as f64 * 0.1, (i % 3) as f64))
+            .collect();
+        let b: Vec<Vector3<f64>> = a
+            .iter()
+            .map(|p| (t * nalgebra::Point3::from(*p)).coords)
+            .collect();
+        let k = kabsch(&a, &b).unwrap();
+        assert!((k.translation.vector - t.translation.vector).norm() < 1e-9);
+        assert!(k.rotation.angle_to(&t.rotation) < 1e-9);
+    }
+}
