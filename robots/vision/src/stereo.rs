@@ -35,7 +35,8 @@ pub struct StereoPoint {
 /// Matches `corners` of the left image along their rows in the right image, for depths in
 /// `[z_min, z_max]`, keeping matches scoring at least `min_score` whose best score is
 /// clearly better (by `0.05`) than any other more than 2 px away (repetitive texture is
-/// ambiguous), refined to sub-pixel disparity.
+/// ambiguous) and that survive a left-right consistency check, refined to sub-pixel
+/// disparity.
 pub fn match_stereo(
     left: &Gray,
     right: &Gray,
@@ -87,6 +88,19 @@ pub fn match_stereo(
             }
             _ => 0.0,
         };
+        // Left-right consistency: matching the right patch back along the left row must land
+        // on the corner again (fails at occlusion boundaries, where a window straddles depths).
+        let Some(back) = Patch::at(right, bx, c.y) else {
+            continue;
+        };
+        let lo_l = (bx as f64 + d_min).floor() as usize;
+        let hi_l = ((bx as f64 + d_max).ceil() as usize).min(left.width - HALF - 1);
+        let back_best = (lo_l..=hi_l.max(lo_l))
+            .filter_map(|x| Patch::at(left, x, c.y).map(|p| (x, back.zncc(&p))))
+            .max_by(|a, b| a.1.total_cmp(&b.1));
+        if back_best.is_none_or(|(x, _)| x.abs_diff(c.x) > 1) {
+            continue;
+        }
         let disparity = c.x as f64 - (bx as f64 + frac);
         if disparity <= 0.0 {
             continue;

@@ -164,6 +164,102 @@ pub fn estimate(
     })
 }
 
+/// Stereo visual odometry, frame to frame.
+///
+/// Each stereo pair: Harris corners of the left image (3 x 3 partition, `per_region` each)
+/// are triangulated with the right image; the previous frame's points are predicted into the
+/// new left image with the previous motion (constant velocity) and matched by ZNCC inside an
+/// ellipse of `search_px` pixels (1σ) around each prediction; the motion is estimated from
+/// those correspondences.
+pub struct StereoVo {
+    bench: crate::stereo::Bench,
+    previous: Option<Vec<(crate::matching::Patch, Vector3<f64>)>>,
+    velocity: Pose,
+    /// Corners kept per 3 x 3 region.
+    pub per_region: usize,
+    /// Search ellipse radius, pixels (1σ).
+    pub search_px: f64,
+    /// Depth range triangulated, metres.
+    pub depth_range_m: [f64; 2],
+}
+
+impl StereoVo {
+    /// VO for a rectified bench.
+    pub fn new(bench: crate::stereo::Bench) -> Self {
+        Self {
+            bench,
+            previous: None,
+            velocity: Pose::identity(),
+            per_region: 25,
+            search_px: 6.0,
+            depth_range_m: [0.5, 120.0],
+        }
+    }
+
+    /// Processes a stereo pair; returns the motion since the previous pair (`None` for the
+    /// first pair or when tracking fails).
+    pub fn process(
+        &mut self,
+        left: &crate::Gray,
+        right: &crate::Gray,
+        rng: &mut impl rand::Rng,
+    ) -> Option<Motion> {
+        use crate::harris::{detect, select_new};
+        use crate::matching::{search_ellipse, Patch};
+        let cam = self.bench.camera;
+        let corners = detect(left, 0.005, 8);
+        let chosen = select_new(&corners, left.width, left.height, &[], self.per_region, 8.0);
+        let points = crate::stereo::match_stereo(
+            left,
+            right,
+            &self.bench,
+            &chosen,
+            self.depth_range_m,
+            0.85,
+        );
+        let mut motion = None;
+        if let Some(prev) = &self.previous {
+            let s = self.search_px * self.search_px;
+            let mut data = Vec::new();
+            for (patch, p) in prev {
+                let predicted = self.velocity * nalgebra::Point3::from(*p);
+                let Some(uv) = cam.project(&predicted.coords) else {
+                    continue;
+                };
+                let Some(m) = search_ellipse(left, patch, uv, [[s, 0.0], [0.0, s]], 9.21, 0.8)
+                else {
+                    continue;
+                };
+                // The point's 3D position now: a stereo point triangulated at the match.
+                let Some(near) = points
+                    .iter()
+                    .find(|q| (q.left[0] - m.x).hypot(q.left[1] - m.y) < 1.5)
+                else {
+                    continue;
+                };
+                data.push(Correspondence {
+                    previous: *p,
+                    current: near.point,
+                    pixel: [m.x, m.y],
+                });
+            }
+            motion = estimate(&cam, &data, 150, 2.0, 12, rng);
+            if let Some(m) = &motion {
+                self.velocity = m.current_from_previous;
+            }
+        }
+        self.previous = Some(
+            points
+                .iter()
+                .filter_map(|q| {
+                    Patch::at(left, q.left[0] as usize, q.left[1] as usize).map(|pt| (pt, q.point))
+                })
+                .collect(),
+        );
+        motion
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
