@@ -1,6 +1,6 @@
 //! The interface every robot stack implements.
 
-use crate::{Command, Outgoing, SensorMsg};
+use crate::{Command, Outgoing, Pose, SensorMsg};
 use serde::{Deserialize, Serialize};
 
 /// How far a stack has got with its mission.
@@ -36,6 +36,12 @@ pub trait RobotStack: Send {
     /// Messages to send to other robots, taken after each [`RobotStack::step`]. The radio
     /// (range, latency, bandwidth, loss) decides whether and when they arrive.
     fn outbox(&mut self) -> Vec<Outgoing> {
+        Vec::new()
+    }
+
+    /// Estimated trajectories the stack kept (for example `"vo"`), each a list of
+    /// `(stamp_ns, world_from_body)`; the engine writes them as `<name>/<robot>.tum`.
+    fn trajectories(&self) -> Vec<(String, Vec<(u64, Pose)>)> {
         Vec::new()
     }
 }

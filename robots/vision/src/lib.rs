@@ -16,6 +16,7 @@
 pub mod harris;
 pub mod image;
 pub mod matching;
+pub mod stack;
 pub mod stereo;
 pub mod vo;
 

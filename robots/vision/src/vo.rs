@@ -170,11 +170,14 @@ pub fn estimate(
 /// are triangulated with the right image; the previous frame's points are predicted into the
 /// new left image with the previous motion (constant velocity) and matched by ZNCC inside an
 /// ellipse of `search_px` pixels (1σ) around each prediction; the motion is estimated from
-/// those correspondences.
+/// those correspondences. Until a motion is known (first frames, or after a failure) the
+/// search is five times wider.
 pub struct StereoVo {
     bench: crate::stereo::Bench,
     previous: Option<Vec<(crate::matching::Patch, Vector3<f64>)>>,
     velocity: Pose,
+    /// No motion estimate yet, or the last one failed: search wider.
+    lost: bool,
     /// Corners kept per 3 x 3 region.
     pub per_region: usize,
     /// Search ellipse radius, pixels (1σ).
@@ -190,6 +193,7 @@ impl StereoVo {
             bench,
             previous: None,
             velocity: Pose::identity(),
+            lost: true,
             per_region: 25,
             search_px: 6.0,
             depth_range_m: [0.5, 120.0],
@@ -219,7 +223,13 @@ impl StereoVo {
         );
         let mut motion = None;
         if let Some(prev) = &self.previous {
-            let s = self.search_px * self.search_px;
+            // Without a trusted velocity the prediction is poor: search five times wider.
+            let sigma = if self.lost {
+                5.0 * self.search_px
+            } else {
+                self.search_px
+            };
+            let s = sigma * sigma;
             let mut data = Vec::new();
             for (patch, p) in prev {
                 let predicted = self.velocity * nalgebra::Point3::from(*p);
@@ -244,6 +254,7 @@ impl StereoVo {
                 });
             }
             motion = estimate(&cam, &data, 150, 2.0, 12, rng);
+            self.lost = motion.is_none();
             if let Some(m) = &motion {
                 self.velocity = m.current_from_previous;
             }

@@ -83,7 +83,8 @@ pub struct Cameras {
     dt_ns: u64,
 }
 
-fn intrinsics_of(
+/// Pinhole intrinsics of a camera sensor: given, or from resolution and field of view.
+pub(crate) fn intrinsics_of(
     width: u32,
     height: u32,
     hfov_deg: Option<f64>,

@@ -22,6 +22,7 @@ pub mod report;
 mod run;
 mod stacks;
 pub mod sweep;
+pub mod trajectory;
 
 pub use output::{write_run, RunFiles, WriteError};
-pub use run::{run, Metrics, RobotMetrics, RunError, RunOptions, RunResult};
+pub use run::{run, Estimate, Metrics, RobotMetrics, RunError, RunOptions, RunResult};

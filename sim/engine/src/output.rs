@@ -81,6 +81,10 @@ pub fn write_run(
         }
         files.push((format!("truth/{name}.tum"), text.into_bytes()));
     }
+    for e in &result.estimates {
+        let text: String = e.poses.iter().map(|(t, p)| tum_line(*t, p)).collect();
+        files.push((format!("{}/{}.tum", e.kind, e.robot), text.into_bytes()));
+    }
     let metrics = serde_json::to_vec_pretty(&result.metrics).expect("metrics serialize");
     files.push(("metrics.json".to_string(), metrics));
     for (name, bytes) in &files {

@@ -67,6 +67,8 @@ pub struct Metrics {
     pub messages: BTreeMap<String, u64>,
     /// What the radio did.
     pub comms: CommsStats,
+    /// Estimated trajectories against truth, by `<kind>/<robot>`.
+    pub estimates: BTreeMap<String, crate::trajectory::Accuracy>,
     /// Indoor worlds with a `[coverage]` table: the grid-level coverage plan's figures.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub coverage: Option<crate::coverage::CoverageMetrics>,
@@ -82,6 +84,19 @@ pub struct RunResult {
     pub digest: RunDigest,
     /// The adapter that rendered the cameras, if any.
     pub adapter: Option<AdapterSummary>,
+    /// Estimated trajectories the stacks kept.
+    pub estimates: Vec<Estimate>,
+}
+
+/// A trajectory a robot stack estimated.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Estimate {
+    /// What estimated it, e.g. `vo`.
+    pub kind: String,
+    /// The robot.
+    pub robot: String,
+    /// `(stamp_ns, world_from_body)`.
+    pub poses: Vec<(u64, Pose)>,
 }
 
 /// Runs a scenario to its duration. `progress(tick, total)` is called every 1 % or so. With
@@ -158,7 +173,11 @@ fn run_on_worker(
     let mut stacks: Vec<Box<dyn RobotStack>> = scenario
         .robots
         .iter()
-        .map(|r| build_stack(scenario, r))
+        .map(|r| {
+            let seed =
+                rand::Rng::next_u64(&mut streams.stream(&format!("{}/vo/ransac", r.spec.name)));
+            build_stack(scenario, r, seed)
+        })
         .collect();
     let names: Vec<String> = scenario
         .robots
@@ -292,11 +311,34 @@ fn run_on_worker(
         d.finish().map_err(RunError::Frames)?;
     }
     let adapter = cameras.as_ref().map(|c| c.adapter().clone());
+    let mut estimates = Vec::new();
+    for (i, stack) in stacks.iter().enumerate() {
+        for (kind, poses) in stack.trajectories() {
+            if poses.len() >= 2 {
+                estimates.push(Estimate {
+                    kind,
+                    robot: names[i].clone(),
+                    poses,
+                });
+            }
+        }
+    }
+    for e in &estimates {
+        let i = names
+            .iter()
+            .position(|n| *n == e.robot)
+            .expect("a robot of this run");
+        metrics.estimates.insert(
+            format!("{}/{}", e.kind, e.robot),
+            crate::trajectory::evaluate(&e.poses, &truth[i]),
+        );
+    }
     Ok(RunResult {
         truth: names.into_iter().zip(truth).collect(),
         metrics,
         digest: post.digest,
         adapter,
+        estimates,
     })
 }
 
@@ -343,6 +385,7 @@ fn metrics(
         solids: scenario.world.solids.len(),
         messages: BTreeMap::new(),
         comms: CommsStats::default(),
+        estimates: BTreeMap::new(),
         coverage: scenario
             .file
             .coverage

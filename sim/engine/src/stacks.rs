@@ -4,10 +4,60 @@ use hetsim_msgs::{Mission, RobotStack};
 use hetsim_pilot::{
     lawnmower, GroundPilot, GroundPilotParams, HeliPilot, HeliPilotParams, Steering,
 };
-use hetsim_scene::{DriveKind, MissionSpec, ResolvedRobot, Scenario, SteeringKind};
+use hetsim_scene::{DriveKind, MissionSpec, ResolvedRobot, Scenario, Sensor, SteeringKind};
 
-/// The stack for a robot: for now the waypoint followers of `hetsim-pilot` on ground truth.
-pub fn build_stack(scenario: &Scenario, robot: &ResolvedRobot) -> Box<dyn RobotStack> {
+/// The stack for a robot: the waypoint followers of `hetsim-pilot` on ground truth, and, for
+/// robots with a stereo bench, stereo visual odometry beside them (`hetsim-vision`).
+pub fn build_stack(scenario: &Scenario, robot: &ResolvedRobot, seed: u64) -> Box<dyn RobotStack> {
+    let pilot = build_pilot(scenario, robot);
+    let stereo = robot.model.sensors.iter().find_map(|s| match s {
+        Sensor::StereoCamera {
+            name,
+            width_px,
+            height_px,
+            hfov_deg,
+            intrinsics,
+            baseline_m,
+            mount,
+            ..
+        } => Some((
+            name,
+            crate::cameras::intrinsics_of(*width_px, *height_px, *hfov_deg, intrinsics.as_ref()),
+            *baseline_m,
+            mount,
+        )),
+        _ => None,
+    });
+    match stereo {
+        Some((name, k, baseline, mount)) => {
+            let camera = hetsim_vision::Camera {
+                alpha_u: k.alpha_u,
+                alpha_v: k.alpha_v,
+                u0: k.u0,
+                v0: k.v0,
+            };
+            let body_from_mount =
+                hetsim_msgs::pose_from_xyz_rpy(mount.xyz_m, mount.rpy_deg.map(f64::to_radians));
+            let body_from_camera = nalgebra::Isometry3::from_parts(
+                body_from_mount.translation,
+                body_from_mount.rotation * hetsim_render::mount_to_optical(),
+            );
+            Box::new(hetsim_vision::stack::VoStack::new(
+                pilot,
+                name,
+                hetsim_vision::stereo::Bench {
+                    camera,
+                    baseline_m: baseline,
+                },
+                body_from_camera,
+                seed,
+            ))
+        }
+        None => pilot,
+    }
+}
+
+fn build_pilot(scenario: &Scenario, robot: &ResolvedRobot) -> Box<dyn RobotStack> {
     let model = &robot.model;
     let pilot = &model.pilot;
     let mission = mission(scenario, &robot.spec.mission);

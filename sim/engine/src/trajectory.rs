@@ -1,0 +1,117 @@
+//! Accuracy of an estimated trajectory against ground truth.
+//!
+//! Poses are paired by stamp (estimates are stamped at camera times, which are also truth
+//! times). ATE: the estimated positions are aligned to the true ones by the rigid motion
+//! minimising the squared error (Horn/Umeyama without scale, as `evo_ape --align`), then the
+//! root-mean-square position error. RPE: over every pair of estimates 1 s apart, the
+//! root-mean-square error of the relative translation (as `evo_rpe --delta 1 --delta_unit s`).
+
+use hetsim_msgs::Pose;
+use nalgebra::Vector3;
+use serde::Serialize;
+use std::collections::BTreeMap;
+
+/// How good an estimated trajectory is.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Accuracy {
+    /// Poses paired with truth.
+    pub poses: usize,
+    /// Length of the true path over those poses, metres.
+    pub length_m: f64,
+    /// Absolute trajectory error after SE(3) alignment, RMSE, metres.
+    pub ate_m: f64,
+    /// Relative pose error of translation over 1 s, RMSE, metres.
+    pub rpe_1s_m: f64,
+    /// Position error of the last pose without alignment, metres.
+    pub final_error_m: f64,
+}
+
+/// Pairs by stamp and evaluates.
+pub fn evaluate(estimate: &[(u64, Pose)], truth: &[(u64, Pose)]) -> Accuracy {
+    let by_stamp: BTreeMap<u64, &Pose> = truth.iter().map(|(t, p)| (*t, p)).collect();
+    let pairs: Vec<(u64, &Pose, &Pose)> = estimate
+        .iter()
+        .filter_map(|(t, e)| by_stamp.get(t).map(|g| (*t, e, *g)))
+        .collect();
+    let est: Vec<Vector3<f64>> = pairs.iter().map(|p| p.1.translation.vector).collect();
+    let gt: Vec<Vector3<f64>> = pairs.iter().map(|p| p.2.translation.vector).collect();
+    let length_m = gt.windows(2).map(|w| (w[1] - w[0]).norm()).sum();
+    let ate_m = match hetsim_vision::vo::kabsch(&est, &gt) {
+        Some(align) => (est
+            .iter()
+            .zip(&gt)
+            .map(|(e, g)| ((align * nalgebra::Point3::from(*e)).coords - g).norm_squared())
+            .sum::<f64>()
+            / est.len() as f64)
+            .sqrt(),
+        None => f64::NAN,
+    };
+    let mut sq = Vec::new();
+    for (i, a) in pairs.iter().enumerate() {
+        if let Some(b) = pairs[i..].iter().find(|b| b.0 >= a.0 + 1_000_000_000) {
+            let rel_est = a.1.inverse() * b.1;
+            let rel_gt = a.2.inverse() * b.2;
+            sq.push((rel_est.translation.vector - rel_gt.translation.vector).norm_squared());
+        }
+    }
+    let rpe_1s_m = if sq.is_empty() {
+        f64::NAN
+    } else {
+        (sq.iter().sum::<f64>() / sq.len() as f64).sqrt()
+    };
+    let final_error_m = est
+        .last()
+        .zip(gt.last())
+        .map_or(f64::NAN, |(e, g)| (e - g).norm());
+    Accuracy {
+        poses: pairs.len(),
+        length_m,
+        ate_m,
+        rpe_1s_m,
+        final_error_m,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use hetsim_msgs::pose_from_xyz_rpy;
+
+    #[test]
+    fn a_rigidly_moved_copy_has_zero_ate_and_a_scaled_one_does_not() {
+        let truth: Vec<(u64, Pose)> = (0..50)
+            .map(|k| {
+                (
+                    k * 100_000_000,
+                    pose_from_xyz_rpy(
+                        [k as f64 * 0.1, (k as f64 * 0.2).sin(), 0.0],
+                        [0.0, 0.0, k as f64 * 0.02],
+                    ),
+                )
+            })
+            .collect();
+        let offset = pose_from_xyz_rpy([5.0, -2.0, 1.0], [0.0, 0.0, 0.3]);
+        let moved: Vec<(u64, Pose)> = truth.iter().map(|(t, p)| (*t, offset * p)).collect();
+        let a = evaluate(&moved, &truth);
+        assert_eq!(a.poses, 50);
+        assert!(a.ate_m < 1e-9 && a.rpe_1s_m < 1e-9, "{a:?}");
+        assert!(
+            a.final_error_m > 1.0,
+            "unaligned final error sees the offset"
+        );
+        let scaled: Vec<(u64, Pose)> = truth
+            .iter()
+            .map(|(t, p)| {
+                (
+                    *t,
+                    pose_from_xyz_rpy(
+                        [p.translation.x * 1.1, p.translation.y * 1.1, 0.0],
+                        [0.0; 3],
+                    ),
+                )
+            })
+            .collect();
+        let b = evaluate(&scaled, &truth);
+        assert!(b.ate_m > 0.05 && b.rpe_1s_m > 0.05, "{b:?}");
+    }
+}
