@@ -84,6 +84,28 @@ pub fn write_run(
     for e in &result.estimates {
         let text: String = e.poses.iter().map(|(t, p)| tum_line(*t, p)).collect();
         files.push((format!("{}/{}.tum", e.kind, e.robot), text.into_bytes()));
+        // A picture: estimate against truth over the estimate's time span.
+        let (first, last) = (e.poses[0].0, e.poses[e.poses.len() - 1].0);
+        let xyz = |p: &Pose| p.translation.vector.into();
+        let truth: Vec<(u64, [f64; 3])> = result
+            .truth
+            .iter()
+            .find(|(n, _)| *n == e.robot)
+            .map(|(_, poses)| {
+                poses
+                    .iter()
+                    .filter(|(t, _)| *t >= first && *t <= last)
+                    .map(|(t, p)| (*t - first, xyz(p)))
+                    .collect()
+            })
+            .unwrap_or_default();
+        let estimate: Vec<(u64, [f64; 3])> =
+            e.poses.iter().map(|(t, p)| (*t - first, xyz(p))).collect();
+        let mut png = Vec::new();
+        crate::plot::trajectory_plot(&truth, &estimate)
+            .write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
+            .expect("PNG encodes in memory");
+        files.push((format!("plots/{}-{}.png", e.kind, e.robot), png));
     }
     let metrics = serde_json::to_vec_pretty(&result.metrics).expect("metrics serialize");
     files.push(("metrics.json".to_string(), metrics));
