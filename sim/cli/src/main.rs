@@ -133,6 +133,10 @@ enum Cmd {
         /// 120x88) on the adapter HETSIM_BACKEND / HETSIM_ADAPTER choose.
         #[arg(long)]
         render: bool,
+        /// Instead: milliseconds per 1024x768 stereo frame for Harris, stereo matching and
+        /// a VO step, on rendered village frames of the rover moving 6 cm per frame.
+        #[arg(long)]
+        vision: bool,
     },
 }
 
@@ -286,6 +290,96 @@ fn real_main() -> Result<()> {
             let moved = rows.iter().filter(|r| r.moved()).count();
             anyhow::ensure!(moved == 0, "{moved} metric(s) moved beyond their tolerance; if the change is intended, run `hetsim regress --update` and commit the baselines");
             println!("regress: {} metrics within tolerance", rows.len());
+        }
+        Cmd::Bench { vision: true, .. } => {
+            use hetsim_render::{
+                mount_to_optical, CameraView, Intrinsics, RenderOptions, Renderer,
+            };
+            use hetsim_vision::{harris, stereo, vo::StereoVo, Camera, Gray};
+            let loaded = load_scenario(
+                std::path::Path::new("scenarios/village.toml"),
+                &LoadOptions::default(),
+            )?;
+            let mut renderer = Renderer::new(&loaded.world, &RenderOptions::default())
+                .map_err(anyhow::Error::msg)?;
+            let k = Intrinsics::from_hfov(1024, 768, 60.0);
+            let cam = Camera {
+                alpha_u: k.alpha_u,
+                alpha_v: k.alpha_v,
+                u0: k.u0,
+                v0: k.v0,
+            };
+            let bench = stereo::Bench {
+                camera: cam,
+                baseline_m: 0.35,
+            };
+            let d = &loaded.robots[0].spec.start;
+            let pair = |renderer: &mut Renderer, forward: f64| {
+                let yaw = d.yaw_deg.to_radians();
+                let (x, y) = (d.x + forward * yaw.cos(), d.y + forward * yaw.sin());
+                let left = hetsim_msgs::pose_from_xyz_rpy(
+                    [x, y, loaded.world.ground_z(x, y) + 1.4],
+                    [0.0, 8f64.to_radians(), yaw],
+                );
+                let right = left * hetsim_msgs::pose_from_xyz_rpy([0.0, -0.35, 0.0], [0.0; 3]);
+                let views: Vec<CameraView> = [left, right]
+                    .iter()
+                    .map(|m| CameraView {
+                        intrinsics: k,
+                        world_from_optical: nalgebra::Isometry3::from_parts(
+                            m.translation,
+                            m.rotation * mount_to_optical(),
+                        ),
+                        near_far_m: [0.05, 3000.0],
+                        hide_robot: None,
+                    })
+                    .collect();
+                let f = renderer.render(&views);
+                (
+                    Gray::from_rgb(1024, 768, &f[0].rgb),
+                    Gray::from_rgb(1024, 768, &f[1].rgb),
+                )
+            };
+            let frames: Vec<(Gray, Gray)> = (0..11)
+                .map(|i| pair(&mut renderer, 0.06 * i as f64))
+                .collect();
+            let (mut t_detect, mut t_stereo, mut t_vo) = (0.0, 0.0, 0.0);
+            let mut vo = StereoVo::new(bench);
+            let mut rng = <rand_chacha::ChaCha8Rng as rand::SeedableRng>::seed_from_u64(0);
+            for (l, r) in &frames {
+                let start = wall_clock();
+                let corners = harris::detect(l, 0.005, 8);
+                let chosen = harris::select_new(&corners, l.width, l.height, &[], 25, 8.0);
+                t_detect += start.elapsed().as_secs_f64();
+                let start = wall_clock();
+                std::hint::black_box(stereo::match_stereo(
+                    l,
+                    r,
+                    &bench,
+                    &chosen,
+                    [0.5, 120.0],
+                    0.85,
+                ));
+                t_stereo += start.elapsed().as_secs_f64();
+                let start = wall_clock();
+                std::hint::black_box(vo.process(l, r, &mut rng));
+                t_vo += start.elapsed().as_secs_f64();
+            }
+            let n = frames.len() as f64 / 1e3;
+            println!("| stage, per 1024x768 stereo frame | ms |");
+            println!("|---|---|");
+            println!(
+                "| Harris + 3x3 selection (left image) | {:.1} |",
+                t_detect / n
+            );
+            println!(
+                "| stereo matching and triangulation | {:.1} |",
+                t_stereo / n
+            );
+            println!(
+                "| full VO step (detection, stereo, tracking, RANSAC + Gauss-Newton) | {:.1} |",
+                t_vo / n
+            );
         }
         Cmd::Bench {
             scenarios,
