@@ -3,11 +3,11 @@
 //! These need a graphics adapter; on CI that is Mesa's llvmpipe (GL) or lavapipe (Vulkan).
 
 use hetsim_msgs::{pose_from_xyz_rpy, Pose};
-use hetsim_render::{mount_to_optical, CameraView, Frame, Intrinsics, RenderOptions, Renderer};
+use hetsim_render::{CameraView, Frame, Intrinsics, RenderOptions, Renderer};
 use hetsim_scene::world::SolidKind;
 use hetsim_scene::{load_scenario, LoadOptions, Scenario};
 use hetsim_tests::repo;
-use nalgebra::{Isometry3, Point3, Vector3};
+use nalgebra::{Point3, Vector3};
 
 fn scenario(name: &str) -> Scenario {
     load_scenario(
@@ -19,15 +19,7 @@ fn scenario(name: &str) -> Scenario {
 
 /// A camera whose mount frame (x forward, y left, z up) is `world_from_mount`.
 fn view(k: Intrinsics, world_from_mount: Pose) -> CameraView {
-    CameraView {
-        intrinsics: k,
-        world_from_optical: Isometry3::from_parts(
-            world_from_mount.translation,
-            world_from_mount.rotation * mount_to_optical(),
-        ),
-        near_far_m: [0.02, 2000.0],
-        hide_robot: None,
-    }
+    CameraView::from_mount(k, &world_from_mount, [0.02, 2000.0])
 }
 
 fn luminance(f: &Frame) -> Vec<f64> {

@@ -37,12 +37,7 @@ const CAM: Camera = Camera {
 /// Left and right views of a bench whose left camera mount is `mount` (body convention).
 fn bench_views(mount: &Pose, baseline: f64) -> [CameraView; 2] {
     let right = mount * pose_from_xyz_rpy([0.0, -baseline, 0.0], [0.0; 3]);
-    [mount, &right].map(|m| CameraView {
-        intrinsics: K,
-        world_from_optical: Isometry3::from_parts(m.translation, m.rotation * mount_to_optical()),
-        near_far_m: [0.05, 3000.0],
-        hide_robot: None,
-    })
+    [mount, &right].map(|m| CameraView::from_mount(K, m, [0.05, 3000.0]))
 }
 
 fn gray(f: &hetsim_render::Frame) -> Gray {

@@ -292,9 +292,7 @@ fn real_main() -> Result<()> {
             println!("regress: {} metrics within tolerance", rows.len());
         }
         Cmd::Bench { vision: true, .. } => {
-            use hetsim_render::{
-                mount_to_optical, CameraView, Intrinsics, RenderOptions, Renderer,
-            };
+            use hetsim_render::{CameraView, Intrinsics, RenderOptions, Renderer};
             use hetsim_vision::{harris, stereo, vo::StereoVo, Camera, Gray};
             let loaded = load_scenario(
                 std::path::Path::new("scenarios/village.toml"),
@@ -324,15 +322,7 @@ fn real_main() -> Result<()> {
                 let right = left * hetsim_msgs::pose_from_xyz_rpy([0.0, -0.35, 0.0], [0.0; 3]);
                 let views: Vec<CameraView> = [left, right]
                     .iter()
-                    .map(|m| CameraView {
-                        intrinsics: k,
-                        world_from_optical: nalgebra::Isometry3::from_parts(
-                            m.translation,
-                            m.rotation * mount_to_optical(),
-                        ),
-                        near_far_m: [0.05, 3000.0],
-                        hide_robot: None,
-                    })
+                    .map(|m| CameraView::from_mount(k, m, [0.05, 3000.0]))
                     .collect();
                 let f = renderer.render(&views);
                 (
@@ -386,9 +376,7 @@ fn real_main() -> Result<()> {
             render: true,
             ..
         } => {
-            use hetsim_render::{
-                mount_to_optical, CameraView, Intrinsics, RenderOptions, Renderer,
-            };
+            use hetsim_render::{CameraView, Intrinsics, RenderOptions, Renderer};
             let mut printed = false;
             for s in &scenarios {
                 let loaded = load_scenario(s, &LoadOptions::default())?;
@@ -416,25 +404,11 @@ fn real_main() -> Result<()> {
                             [r.x, r.y, ground + 1.2],
                             [0.0, 0.1, yaw],
                         );
-                        let mut v = vec![CameraView {
-                            intrinsics: k,
-                            world_from_optical: nalgebra::Isometry3::from_parts(
-                                mount.translation,
-                                mount.rotation * mount_to_optical(),
-                            ),
-                            near_far_m: [0.02, 3000.0],
-                            hide_robot: None,
-                        }];
+                        let mut v = vec![CameraView::from_mount(k, &mount, [0.02, 3000.0])];
                         if pair {
                             let right =
                                 mount * hetsim_msgs::pose_from_xyz_rpy([0.0, -0.35, 0.0], [0.0; 3]);
-                            v.push(CameraView {
-                                world_from_optical: nalgebra::Isometry3::from_parts(
-                                    right.translation,
-                                    right.rotation * mount_to_optical(),
-                                ),
-                                ..v[0].clone()
-                            });
+                            v.push(CameraView::from_mount(k, &right, [0.02, 3000.0]));
                         }
                         v
                     };

@@ -90,6 +90,24 @@ pub struct CameraView {
 }
 
 impl CameraView {
+    /// A camera whose sensor mount (x along the optical axis, y left, z up) is at
+    /// `world_from_mount`, clipping at `near_far_m`, hiding no robot.
+    pub fn from_mount(
+        intrinsics: Intrinsics,
+        world_from_mount: &Pose,
+        near_far_m: [f64; 2],
+    ) -> Self {
+        Self {
+            intrinsics,
+            world_from_optical: nalgebra::Isometry3::from_parts(
+                world_from_mount.translation,
+                world_from_mount.rotation * mount_to_optical(),
+            ),
+            near_far_m,
+            hide_robot: None,
+        }
+    }
+
     /// The matrix taking world points to clip space.
     pub fn view_proj(&self) -> Matrix4<f64> {
         let k = &self.intrinsics;
