@@ -434,13 +434,7 @@ fn real_main() -> Result<()> {
             println!("| scenario | laser scan (481 rays) us | tick, all sensors us | tick, physics + truth only us |");
             println!("|---|---|---|---|");
             for s in &scenarios {
-                let loaded = load_scenario(
-                    s,
-                    &LoadOptions {
-                        seed: None,
-                        duration_secs: Some(sim_secs),
-                    },
-                )?;
+                let loaded = load_for(s, sim_secs)?;
                 let mut physics = hetsim_physics::Physics::for_scenario(
                     &loaded,
                     &hetsim_core::Streams::new(loaded.seed),
@@ -465,10 +459,7 @@ fn real_main() -> Result<()> {
                 let start = wall_clock();
                 let result = run(&loaded, |_, _| {}, hetsim_engine::RunOptions::default())?;
                 let with = start.elapsed().as_secs_f64() * 1e6 / result.metrics.ticks as f64;
-                let mut bare = loaded.clone();
-                for r in &mut bare.robots {
-                    r.model.sensors.clear();
-                }
+                let bare = without_sensors(loaded.clone());
                 let start = wall_clock();
                 let result = run(&bare, |_, _| {}, hetsim_engine::RunOptions::default())?;
                 let without = start.elapsed().as_secs_f64() * 1e6 / result.metrics.ticks as f64;
@@ -520,18 +511,9 @@ fn real_main() -> Result<()> {
             println!("| scenario | robots | sim s | wall s | sim s / wall s |");
             println!("|---|---|---|---|---|");
             for s in &scenarios {
-                let loaded = load_scenario(
-                    s,
-                    &LoadOptions {
-                        seed: None,
-                        duration_secs: Some(sim_secs),
-                    },
-                )?;
+                let loaded = load_for(s, sim_secs)?;
                 // Physics and ground truth only: no sensor models.
-                let mut loaded = loaded;
-                for r in &mut loaded.robots {
-                    r.model.sensors.clear();
-                }
+                let loaded = without_sensors(loaded);
                 let start = wall_clock();
                 let result = run(&loaded, |_, _| {}, hetsim_engine::RunOptions::default())?;
                 let wall = start.elapsed().as_secs_f64();
@@ -607,6 +589,26 @@ fn sweep(
     println!("finished: {} of {} runs", summary.finished, summary.total);
     println!("results: {}", out.display());
     Ok(())
+}
+
+/// A scenario with its own seed, run for `secs` sim seconds (benchmarks).
+fn load_for(path: &std::path::Path, secs: f64) -> Result<hetsim_scene::Scenario> {
+    Ok(load_scenario(
+        path,
+        &LoadOptions {
+            seed: None,
+            duration_secs: Some(secs),
+        },
+    )?)
+}
+
+/// The scenario with every robot's sensors (cameras included) removed: physics and ground
+/// truth only.
+fn without_sensors(mut scenario: hetsim_scene::Scenario) -> hetsim_scene::Scenario {
+    for r in &mut scenario.robots {
+        r.model.sensors.clear();
+    }
+    scenario
 }
 
 /// The scenario's tick, for a run that must last at least one tick.
