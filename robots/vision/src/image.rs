@@ -136,4 +136,59 @@ mod tests {
             }
         }
     }
+
+    #[test]
+    fn world_points_seen_from_random_poses_round_trip() {
+        use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion};
+        let cam = Camera {
+            alpha_u: 443.4,
+            alpha_v: 443.4,
+            u0: 255.5,
+            v0: 191.5,
+        };
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
+        for _ in 0..1000 {
+            let world_from_camera = Isometry3::from_parts(
+                Translation3::new(
+                    rng.random_range(-100.0..100.0),
+                    rng.random_range(-100.0..100.0),
+                    rng.random_range(0.0..60.0),
+                ),
+                UnitQuaternion::from_euler_angles(
+                    rng.random_range(-3.2..3.2),
+                    rng.random_range(-1.5..1.5),
+                    rng.random_range(-3.2..3.2),
+                ),
+            );
+            // A point in front of the camera, placed through the camera, then forgotten.
+            let local = Vector3::new(
+                rng.random_range(-10.0..10.0),
+                rng.random_range(-10.0..10.0),
+                rng.random_range(1.0..150.0),
+            );
+            let world = world_from_camera * Point3::from(local);
+            let seen = world_from_camera.inverse_transform_point(&world).coords;
+            let [u, v] = cam.project(&seen).unwrap();
+            let back = world_from_camera * Point3::from(cam.back_project(u, v, seen.z));
+            assert!((back - world).norm() < 1e-9 * (1.0 + world.coords.norm()));
+            // The Jacobian of the pixel with respect to the world point is J R^T.
+            let j = nalgebra::Matrix2x3::from_fn(|r, c| cam.project_jacobian(&seen)[r][c])
+                * world_from_camera.rotation.to_rotation_matrix().matrix().transpose();
+            for k in 0..3 {
+                let h = 1e-5 * (1.0 + seen.z);
+                let mut step = Vector3::zeros();
+                step[k] = h;
+                let f = |p: Point3<f64>| {
+                    let q = world_from_camera.inverse_transform_point(&p).coords;
+                    nalgebra::Vector2::from(cam.project(&q).unwrap())
+                };
+                let numeric = (f(world + step) - f(world - step)) / (2.0 * h);
+                let analytic = j.column(k);
+                assert!(
+                    (numeric - analytic).norm() < 1e-5 * (1.0 + analytic.norm()),
+                    "{numeric} vs {analytic}"
+                );
+            }
+        }
+    }
 }

@@ -5,6 +5,7 @@
 //!   partition of the image with at least two tracked landmarks per region;
 //! * [`matching`]: zero-mean normalized cross-correlation (ZNCC) of patches, searched inside a
 //!   predicted ellipse given by the caller's covariance;
+//! * [`segments`]: LSD-class line segment detection, and tracking from a predicted segment;
 //! * [`stereo`]: points matched along the rows of a rectified stereo pair, triangulated to
 //!   3D points in the left camera's optical frame;
 //! * [`vo`]: frame-to-frame motion from matched 3D points, RANSAC then Gauss-Newton on the
@@ -16,6 +17,7 @@
 pub mod harris;
 pub mod image;
 pub mod matching;
+pub mod segments;
 pub mod stack;
 pub mod stereo;
 pub mod vo;

@@ -38,6 +38,33 @@ impl Patch {
         Some(Self(v))
     }
 
+    /// ZNCC with the image's patch centred on `(x, y)`, without building that patch: as the
+    /// template has zero mean, the image patch's mean drops out of the dot product. `None`
+    /// where [`Patch::at`] would give `None`.
+    #[inline]
+    pub fn score(&self, img: &Gray, x: usize, y: usize) -> Option<f32> {
+        if x < HALF || y < HALF || x + HALF >= img.width || y + HALF >= img.height {
+            return None;
+        }
+        let (mut dot, mut sum, mut sum2) = (0f32, 0f32, 0f32);
+        let side = 2 * HALF + 1;
+        for (r, yy) in (y - HALF..=y + HALF).enumerate() {
+            let row = &img.data[yy * img.width + x - HALF..=yy * img.width + x + HALF];
+            let t = &self.0[r * side..(r + 1) * side];
+            for (a, b) in t.iter().zip(row) {
+                dot += a * b;
+                sum += b;
+                sum2 += b * b;
+            }
+        }
+        let n = (side * side) as f32;
+        let norm = sum2 - sum * sum / n;
+        if norm < 1e-3 * n {
+            return None;
+        }
+        Some(dot / norm.sqrt())
+    }
+
     /// ZNCC with another patch, in [-1, 1].
     pub fn zncc(&self, other: &Patch) -> f32 {
         self.0.iter().zip(&other.0).map(|(a, b)| a * b).sum()
@@ -94,7 +121,7 @@ pub fn search_ellipse(
     let y1 = (predicted[1] + hh)
         .ceil()
         .min((img.height - HALF - 1) as f64) as usize;
-    let score_at = |x: usize, y: usize| Patch::at(img, x, y).map_or(-1.0, |p| template.zncc(&p));
+    let score_at = |x: usize, y: usize| template.score(img, x, y).unwrap_or(-1.0);
     let mut best: Option<(f32, usize, usize)> = None;
     for y in y0..=y1.max(y0) {
         for x in x0..=x1.max(x0) {

@@ -63,7 +63,7 @@ pub fn match_stereo(
             continue;
         }
         let scores: Vec<(usize, f32)> = (lo..=hi)
-            .filter_map(|x| Patch::at(right, x, c.y).map(|p| (x, t.zncc(&p))))
+            .filter_map(|x| t.score(right, x, c.y).map(|v| (x, v)))
             .collect();
         let Some(&(bx, best)) = scores.iter().max_by(|a, b| a.1.total_cmp(&b.1)) else {
             continue;
@@ -96,7 +96,7 @@ pub fn match_stereo(
         let lo_l = (bx as f64 + d_min).floor() as usize;
         let hi_l = ((bx as f64 + d_max).ceil() as usize).min(left.width - HALF - 1);
         let back_best = (lo_l..=hi_l.max(lo_l))
-            .filter_map(|x| Patch::at(left, x, c.y).map(|p| (x, back.zncc(&p))))
+            .filter_map(|x| back.score(left, x, c.y).map(|v| (x, v)))
             .max_by(|a, b| a.1.total_cmp(&b.1));
         if back_best.is_none_or(|(x, _)| x.abs_diff(c.x) > 1) {
             continue;

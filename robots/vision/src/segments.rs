@@ -1,0 +1,903 @@
+//! Line segments: detection in the manner of LSD, and model-driven tracking.
+//!
+//! **Detection** follows the Line Segment Detector of Grompone von Gioi, Jakubowicz, Morel and
+//! Randall (IPOL 2012), without its 0.8 down-scaling (a Gaussian of σ = 0.8 px stands in for
+//! it): level-line angles from a 2 x 2 gradient mask, pixels pseudo-ordered by gradient
+//! magnitude (1024 bins), regions grown from seeds within an angle tolerance τ = 22.5°,
+//! approximated by the rectangle of their inertia, refined (a tighter tolerance, then a
+//! shrinking radius) while too few of the rectangle's pixels are in the region, and kept when
+//! the number of false alarms, `NFA = (NM)^(5/2) B(n, k, τ/π)`, is below 1 (an a-contrario
+//! test: the segment would not appear by chance in noise).
+//!
+//! **Tracking** is the model-driven step the seed relies on (its reference \[14\]): the
+//! caller predicts the segment's image from its 3D estimate ([`project_segment`]); edge points
+//! are searched along the predicted segment's normal, a line is fitted to them with residual
+//! rejection, and the ends are extended along the line while the edge goes on.
+//!
+//! A segment's direction carries its polarity, as in LSD: going from `a` to `b`, the darker
+//! side is on the right in image coordinates (x right, y down); equivalently the gradient
+//! points to the left of `b - a`.
+
+use crate::{Camera, Gray};
+use nalgebra::{Isometry3, Point3, Vector2, Vector3};
+use std::f64::consts::PI;
+
+/// An image line segment.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Segment {
+    /// First endpoint, pixels.
+    pub a: [f64; 2],
+    /// Second endpoint, pixels.
+    pub b: [f64; 2],
+    /// Width of the supporting rectangle, pixels (detection only; 1 when tracked).
+    pub width: f64,
+    /// −log10(NFA) of the detection (larger is more meaningful); 0 when tracked.
+    pub significance: f64,
+}
+
+impl Segment {
+    /// A segment from its endpoints.
+    pub fn new(a: [f64; 2], b: [f64; 2]) -> Self {
+        Self {
+            a,
+            b,
+            width: 1.0,
+            significance: 0.0,
+        }
+    }
+
+    /// Length, pixels.
+    pub fn length(&self) -> f64 {
+        (self.b[0] - self.a[0]).hypot(self.b[1] - self.a[1])
+    }
+
+    /// Unit direction from `a` to `b`.
+    pub fn direction(&self) -> Vector2<f64> {
+        Vector2::new(self.b[0] - self.a[0], self.b[1] - self.a[1]).normalize()
+    }
+
+    /// Signed distance of `p` from the segment's supporting line (positive on the left of
+    /// `b - a`, i.e. the gradient's side).
+    pub fn line_distance(&self, p: [f64; 2]) -> f64 {
+        let d = self.direction();
+        (p[1] - self.a[1]) * d.x - (p[0] - self.a[0]) * d.y
+    }
+
+    /// Abscissa of `p`'s projection on the line, pixels from `a` towards `b`.
+    pub fn abscissa(&self, p: [f64; 2]) -> f64 {
+        let d = self.direction();
+        (p[0] - self.a[0]) * d.x + (p[1] - self.a[1]) * d.y
+    }
+
+    /// The point at abscissa `s`.
+    pub fn at(&self, s: f64) -> [f64; 2] {
+        let d = self.direction();
+        [self.a[0] + s * d.x, self.a[1] + s * d.y]
+    }
+}
+
+/// Parameters of [`detect`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DetectParams {
+    /// The image is first scaled by this factor (LSD: 0.8), after a Gaussian of
+    /// σ = 0.6 / scale pixels against aliasing; 1 works on the image as it is.
+    pub scale: f64,
+    /// Angle tolerance τ, radians.
+    pub angle_tolerance: f64,
+    /// Gradient quantization error bound q (grey levels); pixels with a gradient under
+    /// `q / sin τ` have no reliable angle.
+    pub quantization: f64,
+    /// Minimal density of region pixels in the rectangle before refinement stops.
+    pub density: f64,
+    /// Segments shorter than this are dropped, pixels.
+    pub min_length: f64,
+}
+
+impl Default for DetectParams {
+    fn default() -> Self {
+        Self {
+            scale: 0.8,
+            angle_tolerance: 22.5f64.to_radians(),
+            quantization: 2.0,
+            density: 0.7,
+            min_length: 60.0,
+        }
+    }
+}
+
+/// Level-line field of an image: gradient magnitude and level-line angle at the centre of
+/// each 2 x 2 block (`(x + 0.5, y + 0.5)`); `None` where the gradient is too small.
+struct Field {
+    width: usize,
+    height: usize,
+    magnitude: Vec<f64>,
+    angle: Vec<Option<f64>>,
+}
+
+impl Field {
+    fn new(img: &Gray, threshold: f64) -> Self {
+        let (w, h) = (img.width - 1, img.height - 1);
+        let mut magnitude = vec![0.0; w * h];
+        let mut angle = vec![None; w * h];
+        for y in 0..h {
+            for x in 0..w {
+                let p = |dx, dy| img.at(x + dx, y + dy) as f64;
+                let (c1, c2) = (p(1, 1) - p(0, 0), p(1, 0) - p(0, 1));
+                let (gx, gy) = ((c1 + c2) / 2.0, (c1 - c2) / 2.0);
+                let m = gx.hypot(gy);
+                let i = y * w + x;
+                magnitude[i] = m;
+                if m > threshold {
+                    angle[i] = Some(gx.atan2(-gy));
+                }
+            }
+        }
+        Self {
+            width: w,
+            height: h,
+            magnitude,
+            angle,
+        }
+    }
+}
+
+/// Absolute difference of two angles, in [0, π].
+fn angle_diff(a: f64, b: f64) -> f64 {
+    let mut d = (a - b).rem_euclid(2.0 * PI);
+    if d > PI {
+        d = 2.0 * PI - d;
+    }
+    d
+}
+
+/// Separable Gaussian blur.
+fn blur(img: &Gray, sigma: f64) -> Gray {
+    if sigma <= 0.0 {
+        return img.clone();
+    }
+    let r = (3.0 * sigma).ceil() as isize;
+    let kernel: Vec<f32> = (-r..=r)
+        .map(|k| (-(k * k) as f64 / (2.0 * sigma * sigma)).exp() as f32)
+        .collect();
+    let norm: f32 = kernel.iter().sum();
+    let (w, h) = (img.width as isize, img.height as isize);
+    let pass = |src: &[f32], horizontal: bool| -> Vec<f32> {
+        let mut out = vec![0f32; src.len()];
+        for y in 0..h {
+            for x in 0..w {
+                let mut acc = 0f32;
+                for (j, k) in kernel.iter().enumerate() {
+                    let o = j as isize - r;
+                    let (xx, yy) = if horizontal {
+                        ((x + o).clamp(0, w - 1), y)
+                    } else {
+                        (x, (y + o).clamp(0, h - 1))
+                    };
+                    acc += k * src[(yy * w + xx) as usize];
+                }
+                out[(y * w + x) as usize] = acc / norm;
+            }
+        }
+        out
+    };
+    let tmp = pass(&img.data, true);
+    Gray {
+        width: img.width,
+        height: img.height,
+        data: pass(&tmp, false),
+    }
+}
+
+/// The image scaled by `scale` (pixel `i` of the result samples the original at `i / scale`),
+/// blurred first with σ = 0.6 / scale (LSD's Gaussian sub-sampling).
+fn rescale(img: &Gray, scale: f64) -> Gray {
+    let sigma = if scale < 1.0 { 0.6 / scale } else { 0.6 };
+    let smooth = blur(img, sigma);
+    if scale == 1.0 {
+        return smooth;
+    }
+    let (w, h) = (
+        ((img.width as f64) * scale).floor() as usize,
+        ((img.height as f64) * scale).floor() as usize,
+    );
+    let mut data = Vec::with_capacity(w * h);
+    for y in 0..h {
+        for x in 0..w {
+            let v = smooth.sample(x as f64 / scale, y as f64 / scale);
+            data.push(v.expect("inside: the scaled size is floored"));
+        }
+    }
+    Gray {
+        width: w,
+        height: h,
+        data,
+    }
+}
+
+/// A grown region: its pixels and their mean level-line angle.
+struct Region {
+    pixels: Vec<(usize, usize)>,
+    angle: f64,
+}
+
+fn grow(field: &Field, used: &mut [bool], seed: (usize, usize), tolerance: f64) -> Region {
+    let w = field.width;
+    let seed_angle = field.angle[seed.1 * w + seed.0].expect("seeds have an angle");
+    let (mut sx, mut sy) = (seed_angle.cos(), seed_angle.sin());
+    let mut angle = seed_angle;
+    let mut pixels = vec![seed];
+    used[seed.1 * w + seed.0] = true;
+    let mut i = 0;
+    while i < pixels.len() {
+        let (px, py) = pixels[i];
+        for yy in py.saturating_sub(1)..=(py + 1).min(field.height - 1) {
+            for xx in px.saturating_sub(1)..=(px + 1).min(w - 1) {
+                let j = yy * w + xx;
+                if used[j] {
+                    continue;
+                }
+                if let Some(a) = field.angle[j] {
+                    if angle_diff(a, angle) <= tolerance {
+                        used[j] = true;
+                        pixels.push((xx, yy));
+                        sx += a.cos();
+                        sy += a.sin();
+                        angle = sy.atan2(sx);
+                    }
+                }
+            }
+        }
+        i += 1;
+    }
+    Region { pixels, angle }
+}
+
+/// The rectangle approximating a region.
+#[derive(Clone, Copy, Debug)]
+struct Rect {
+    centre: [f64; 2],
+    theta: f64,
+    l: [f64; 2],
+    w: [f64; 2],
+}
+
+impl Rect {
+    fn of(field: &Field, region: &Region, tolerance: f64) -> Self {
+        let wsum: f64 = region
+            .pixels
+            .iter()
+            .map(|&(x, y)| field.magnitude[y * field.width + x])
+            .sum();
+        let (mut cx, mut cy) = (0.0, 0.0);
+        for &(x, y) in &region.pixels {
+            let m = field.magnitude[y * field.width + x];
+            cx += m * x as f64;
+            cy += m * y as f64;
+        }
+        cx /= wsum;
+        cy /= wsum;
+        let (mut ixx, mut iyy, mut ixy) = (0.0, 0.0, 0.0);
+        for &(x, y) in &region.pixels {
+            let m = field.magnitude[y * field.width + x];
+            let (dx, dy) = (x as f64 - cx, y as f64 - cy);
+            ixx += m * dy * dy;
+            iyy += m * dx * dx;
+            ixy -= m * dx * dy;
+        }
+        let lambda = 0.5 * (ixx + iyy - ((ixx - iyy).powi(2) + 4.0 * ixy * ixy).sqrt());
+        let mut theta = if ixx.abs() > iyy.abs() {
+            (lambda - ixx).atan2(ixy)
+        } else {
+            ixy.atan2(lambda - iyy)
+        };
+        if angle_diff(theta, region.angle) > tolerance {
+            theta += PI;
+        }
+        let (dx, dy) = (theta.cos(), theta.sin());
+        let (mut l, mut w) = ([0f64, 0f64], [0f64, 0f64]);
+        for &(x, y) in &region.pixels {
+            let (ox, oy) = (x as f64 - cx, y as f64 - cy);
+            let lv = ox * dx + oy * dy;
+            let wv = -ox * dy + oy * dx;
+            l = [l[0].min(lv), l[1].max(lv)];
+            w = [w[0].min(wv), w[1].max(wv)];
+        }
+        Self {
+            centre: [cx, cy],
+            theta,
+            l,
+            w,
+        }
+    }
+
+    fn length(&self) -> f64 {
+        self.l[1] - self.l[0]
+    }
+
+    fn width(&self) -> f64 {
+        (self.w[1] - self.w[0]).max(1.0)
+    }
+
+    /// log10 of the number of false alarms, counting the field's pixels inside the rectangle
+    /// and those aligned with it.
+    fn log_nfa(&self, field: &Field, tolerance: f64, log_nt: f64) -> f64 {
+        let (dx, dy) = (self.theta.cos(), self.theta.sin());
+        let half_w = self.width() / 2.0;
+        let wmid = (self.w[0] + self.w[1]) / 2.0;
+        let corners = [
+            (self.l[0], wmid - half_w),
+            (self.l[0], wmid + half_w),
+            (self.l[1], wmid - half_w),
+            (self.l[1], wmid + half_w),
+        ]
+        .map(|(l, w)| {
+            (
+                self.centre[0] + l * dx - w * dy,
+                self.centre[1] + l * dy + w * dx,
+            )
+        });
+        let x0 = corners.iter().map(|c| c.0).fold(f64::MAX, f64::min).floor() as isize;
+        let x1 = corners.iter().map(|c| c.0).fold(f64::MIN, f64::max).ceil() as isize;
+        let y0 = corners.iter().map(|c| c.1).fold(f64::MAX, f64::min).floor() as isize;
+        let y1 = corners.iter().map(|c| c.1).fold(f64::MIN, f64::max).ceil() as isize;
+        let (mut n, mut k) = (0u64, 0u64);
+        for y in y0.max(0)..=y1.min(field.height as isize - 1) {
+            for x in x0.max(0)..=x1.min(field.width as isize - 1) {
+                let (ox, oy) = (x as f64 - self.centre[0], y as f64 - self.centre[1]);
+                let lv = ox * dx + oy * dy;
+                let wv = -ox * dy + oy * dx - wmid;
+                if lv < self.l[0] - 0.5 || lv > self.l[1] + 0.5 || wv.abs() > half_w + 1e-9 {
+                    continue;
+                }
+                n += 1;
+                if let Some(a) = field.angle[y as usize * field.width + x as usize] {
+                    if angle_diff(a, self.theta) <= tolerance {
+                        k += 1;
+                    }
+                }
+            }
+        }
+        log_nt + log10_binomial_tail(n, k, tolerance / PI)
+    }
+}
+
+/// log10 of the binomial tail `P[X >= k]`, X ~ B(n, p) (the series of LSD's `nfa()`,
+/// summed until its terms stop mattering).
+fn log10_binomial_tail(n: u64, k: u64, p: f64) -> f64 {
+    if k == 0 {
+        return 0.0;
+    }
+    if k > n {
+        return f64::NEG_INFINITY;
+    }
+    let (nf, kf) = (n as f64, k as f64);
+    let log_term = |i: f64| {
+        ln_gamma(nf + 1.0) - ln_gamma(i + 1.0) - ln_gamma(nf - i + 1.0)
+            + i * p.ln()
+            + (nf - i) * (1.0 - p).ln()
+    };
+    let first = log_term(kf);
+    let mut sum = 1.0;
+    let mut term = 1.0;
+    let mut i = kf;
+    while i < nf {
+        // term(i+1) / term(i) = (n - i) / (i + 1) * p / (1 - p).
+        term *= (nf - i) / (i + 1.0) * p / (1.0 - p);
+        sum += term;
+        i += 1.0;
+        if term < 1e-12 * sum {
+            break;
+        }
+    }
+    (first + sum.ln()) / std::f64::consts::LN_10
+}
+
+/// ln Γ(x) for x > 0 (Lanczos, g = 7, n = 9).
+fn ln_gamma(x: f64) -> f64 {
+    const G: [f64; 9] = [
+        0.999_999_999_999_809_9,
+        676.520_368_121_885_1,
+        -1_259.139_216_722_402_8,
+        771.323_428_777_653_1,
+        -176.615_029_162_140_6,
+        12.507_343_278_686_905,
+        -0.138_571_095_265_720_12,
+        9.984_369_578_019_572e-6,
+        1.505_632_735_149_311_6e-7,
+    ];
+    if x < 0.5 {
+        return (PI / (PI * x).sin()).ln() - ln_gamma(1.0 - x);
+    }
+    let x = x - 1.0;
+    let t = x + 7.5;
+    let s = G[0]
+        + G[1..]
+            .iter()
+            .enumerate()
+            .map(|(i, g)| g / (x + i as f64 + 1.0))
+            .sum::<f64>();
+    0.5 * (2.0 * PI).ln() + (x + 0.5) * t.ln() - t + s.ln()
+}
+
+/// Line segments of an image, longest first.
+pub fn detect(img: &Gray, params: &DetectParams) -> Vec<Segment> {
+    if img.width < 4 || img.height < 4 {
+        return Vec::new();
+    }
+    let smooth = rescale(img, params.scale);
+    let tau = params.angle_tolerance;
+    let field = Field::new(&smooth, params.quantization / tau.sin());
+    let (w, h) = (field.width, field.height);
+    let log_nt = 2.5 * ((w as f64).log10() + (h as f64).log10()) + 11f64.log10();
+    let p = tau / PI;
+    let min_region = (-log_nt / p.log10()).ceil() as usize;
+
+    // Pseudo-order: 1024 magnitude bins, strongest first, scan order inside a bin.
+    let max_mag = field.magnitude.iter().copied().fold(0.0, f64::max);
+    let mut bins: Vec<Vec<u32>> = vec![Vec::new(); 1024];
+    for (i, m) in field.magnitude.iter().enumerate() {
+        if field.angle[i].is_some() {
+            let b = ((m / max_mag) * 1023.0) as usize;
+            bins[1023 - b.min(1023)].push(i as u32);
+        }
+    }
+
+    let mut used = vec![false; w * h];
+    let mut out = Vec::new();
+    for i in bins.into_iter().flatten() {
+        let i = i as usize;
+        if used[i] {
+            continue;
+        }
+        let seed = (i % w, i / w);
+        let mut region = grow(&field, &mut used, seed, tau);
+        if region.pixels.len() < min_region {
+            continue;
+        }
+        let mut rect = Rect::of(&field, &region, tau);
+        if !refine(&field, &mut used, &mut region, &mut rect, seed, tau, params) {
+            continue;
+        }
+        let log_nfa = rect.log_nfa(&field, tau, log_nt);
+        if log_nfa >= 0.0 {
+            continue;
+        }
+        let (dx, dy) = (rect.theta.cos(), rect.theta.sin());
+        let wmid = (rect.w[0] + rect.w[1]) / 2.0;
+        // The 2 x 2 mask's values sit at (x + 0.5, y + 0.5) of the scaled image.
+        let end = |l: f64| {
+            [
+                (rect.centre[0] + l * dx - wmid * dy + 0.5) / params.scale,
+                (rect.centre[1] + l * dy + wmid * dx + 0.5) / params.scale,
+            ]
+        };
+        let seg = Segment {
+            a: end(rect.l[0]),
+            b: end(rect.l[1]),
+            width: rect.width() / params.scale,
+            significance: -log_nfa,
+        };
+        if seg.length() >= params.min_length {
+            out.push(seg);
+        }
+    }
+    out.sort_by(|a, b| b.length().total_cmp(&a.length()));
+    out
+}
+
+/// LSD's refinement: while the rectangle holds too few region pixels, regrow from the seed
+/// with a tolerance fitted to the angles near it, then shrink the region's radius. Returns
+/// whether a dense enough region of at least two pixels remains.
+fn refine(
+    field: &Field,
+    used: &mut [bool],
+    region: &mut Region,
+    rect: &mut Rect,
+    seed: (usize, usize),
+    tau: f64,
+    params: &DetectParams,
+) -> bool {
+    let density =
+        |r: &Region, rect: &Rect| r.pixels.len() as f64 / (rect.length().max(1.0) * rect.width());
+    if density(region, rect) >= params.density {
+        return true;
+    }
+    // A new tolerance: twice the spread of the angles of the pixels near the seed.
+    let seed_angle = field.angle[seed.1 * field.width + seed.0].expect("seed");
+    let near: Vec<f64> = region
+        .pixels
+        .iter()
+        .filter(|&&(x, y)| {
+            (x as f64 - seed.0 as f64).hypot(y as f64 - seed.1 as f64) < rect.width()
+        })
+        .filter_map(|&(x, y)| field.angle[y * field.width + x])
+        .map(|a| (a - seed_angle + PI).rem_euclid(2.0 * PI) - PI)
+        .collect();
+    if near.len() >= 2 {
+        let mean = near.iter().sum::<f64>() / near.len() as f64;
+        let var = near.iter().map(|d| (d - mean).powi(2)).sum::<f64>() / near.len() as f64;
+        let new_tau = (2.0 * var.sqrt()).min(tau);
+        for &(x, y) in &region.pixels {
+            used[y * field.width + x] = false;
+        }
+        *region = grow(field, used, seed, new_tau.max(1e-3));
+        if region.pixels.len() < 2 {
+            return false;
+        }
+        *rect = Rect::of(field, region, tau);
+        if density(region, rect) >= params.density {
+            return true;
+        }
+    }
+    // Shrink the region's radius around the seed.
+    let mut radius = region
+        .pixels
+        .iter()
+        .map(|&(x, y)| (x as f64 - seed.0 as f64).hypot(y as f64 - seed.1 as f64))
+        .fold(0.0, f64::max);
+    while density(region, rect) < params.density {
+        radius *= 0.75;
+        let (keep, drop): (Vec<_>, Vec<_>) = region.pixels.iter().partition(|&&(x, y)| {
+            (x as f64 - seed.0 as f64).hypot(y as f64 - seed.1 as f64) <= radius
+        });
+        for (x, y) in drop {
+            used[y * field.width + x] = false;
+        }
+        region.pixels = keep;
+        if region.pixels.len() < 2 {
+            return false;
+        }
+        *rect = Rect::of(field, region, tau);
+    }
+    true
+}
+
+/// The image of the 3D segment `p`-`q` (in the frame `world`, seen from a camera whose optical
+/// frame is at `world_from_camera`), clipped to `near` metres in front of the camera. `None`
+/// when the whole segment is behind that plane.
+pub fn project_segment(
+    camera: &Camera,
+    world_from_camera: &Isometry3<f64>,
+    p: &Point3<f64>,
+    q: &Point3<f64>,
+    near: f64,
+) -> Option<Segment> {
+    let (mut a, mut b) = (
+        world_from_camera.inverse_transform_point(p).coords,
+        world_from_camera.inverse_transform_point(q).coords,
+    );
+    if a.z < near && b.z < near {
+        return None;
+    }
+    let clip = |inside: Vector3<f64>, outside: Vector3<f64>| {
+        let t = (near - inside.z) / (outside.z - inside.z);
+        inside + (outside - inside) * t
+    };
+    if a.z < near {
+        a = clip(b, a);
+    } else if b.z < near {
+        b = clip(a, b);
+    }
+    Some(Segment::new(camera.project(&a)?, camera.project(&b)?))
+}
+
+/// Parameters of [`track`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TrackParams {
+    /// Half length of the search along the predicted segment's normal, pixels.
+    pub search_px: f64,
+    /// Spacing of the edge samples along the predicted segment, pixels.
+    pub spacing_px: f64,
+    /// Largest angle between an edge point's gradient and the predicted normal, radians.
+    pub angle_tolerance: f64,
+    /// Smallest gradient magnitude of an edge point, grey levels per pixel.
+    pub min_gradient: f64,
+    /// Residual beyond which an edge point is rejected from the line fit, pixels.
+    pub inlier_px: f64,
+    /// Smallest fraction of the samples that must support the fitted line.
+    pub min_support: f64,
+}
+
+impl Default for TrackParams {
+    fn default() -> Self {
+        Self {
+            search_px: 12.0,
+            spacing_px: 4.0,
+            angle_tolerance: 30f64.to_radians(),
+            min_gradient: 6.0,
+            inlier_px: 1.5,
+            min_support: 0.5,
+        }
+    }
+}
+
+/// Central-difference gradient of the image at a sub-pixel position.
+fn gradient(img: &Gray, x: f64, y: f64) -> Option<Vector2<f64>> {
+    let gx = img.sample(x + 1.0, y)? as f64 - img.sample(x - 1.0, y)? as f64;
+    let gy = img.sample(x, y + 1.0)? as f64 - img.sample(x, y - 1.0)? as f64;
+    Some(Vector2::new(gx, gy) / 2.0)
+}
+
+/// The edge point nearest `p` along `normal` (within `reach` pixels each side) whose
+/// gradient agrees with the normal: the sub-pixel maximum of the gradient's component along
+/// the normal.
+fn edge_along(
+    img: &Gray,
+    p: [f64; 2],
+    normal: Vector2<f64>,
+    reach: f64,
+    params: &TrackParams,
+) -> Option<[f64; 2]> {
+    let steps = (reach * 2.0).round() as i64;
+    let at = |k: i64| {
+        let t = k as f64 * 0.5;
+        let (x, y) = (p[0] + t * normal.x, p[1] + t * normal.y);
+        gradient(img, x, y).map(|g| (g.dot(&normal), g.norm()))
+    };
+    let values: Vec<Option<(f64, f64)>> = (-steps - 1..=steps + 1).map(at).collect();
+    let mut best: Option<(i64, f64)> = None;
+    for k in -steps..=steps {
+        let i = (k + steps + 1) as usize;
+        let Some((along, norm)) = values[i] else {
+            continue;
+        };
+        if norm < params.min_gradient || along < norm * params.angle_tolerance.cos() {
+            continue;
+        }
+        let (prev, next) = (values[i - 1].map(|v| v.0), values[i + 1].map(|v| v.0));
+        if prev.is_some_and(|v| v > along) || next.is_some_and(|v| v > along) {
+            continue;
+        }
+        // Nearest to the prediction among the local maxima, ties to the stronger.
+        let better = match best {
+            None => true,
+            Some((bk, bv)) => k.abs() < bk.abs() || (k.abs() == bk.abs() && along > bv),
+        };
+        if better {
+            best = Some((k, along));
+        }
+    }
+    let (k, v0) = best?;
+    let i = (k + steps + 1) as usize;
+    let (vm, vp) = (values[i - 1]?.0, values[i + 1]?.0);
+    let denom = vm - 2.0 * v0 + vp;
+    let offset = if denom < 0.0 {
+        (0.5 * (vm - vp) / denom).clamp(-0.5, 0.5)
+    } else {
+        0.0
+    };
+    let t = (k as f64 + offset) * 0.5;
+    Some([p[0] + t * normal.x, p[1] + t * normal.y])
+}
+
+/// Total least-squares line through points: a point on it and its unit direction.
+fn fit_line(points: &[[f64; 2]]) -> Option<(Vector2<f64>, Vector2<f64>)> {
+    if points.len() < 2 {
+        return None;
+    }
+    let n = points.len() as f64;
+    let c = points
+        .iter()
+        .fold(Vector2::zeros(), |acc, p| acc + Vector2::new(p[0], p[1]))
+        / n;
+    let (mut sxx, mut syy, mut sxy) = (0.0, 0.0, 0.0);
+    for p in points {
+        let (dx, dy) = (p[0] - c.x, p[1] - c.y);
+        sxx += dx * dx;
+        syy += dy * dy;
+        sxy += dx * dy;
+    }
+    let theta = 0.5 * (2.0 * sxy).atan2(sxx - syy);
+    Some((c, Vector2::new(theta.cos(), theta.sin())))
+}
+
+/// Tracks a segment in `img` from its predicted image `predicted` (whose direction carries
+/// the expected polarity). Returns the observed segment, with endpoints extended along the
+/// edge where it goes on beyond the prediction, or `None` when too few edge points support a
+/// line.
+pub fn track(img: &Gray, predicted: &Segment, params: &TrackParams) -> Option<Segment> {
+    let len = predicted.length();
+    if len < 2.0 * params.spacing_px {
+        return None;
+    }
+    let d = predicted.direction();
+    // The gradient points to the left of the direction: the normal (d.y, -d.x) in image
+    // coordinates (y down) is that side.
+    let normal = Vector2::new(d.y, -d.x);
+    let samples = (len / params.spacing_px).floor() as usize;
+    let mut points = Vec::with_capacity(samples + 1);
+    for k in 0..=samples {
+        let s = len * k as f64 / samples as f64;
+        if let Some(p) = edge_along(img, predicted.at(s), normal, params.search_px, params) {
+            points.push(p);
+        }
+    }
+    // Fit, reject the outliers, refit.
+    let mut line = fit_line(&points)?;
+    for _ in 0..3 {
+        let (c, u) = line;
+        let keep: Vec<[f64; 2]> = points
+            .iter()
+            .copied()
+            .filter(|p| ((p[1] - c.y) * u.x - (p[0] - c.x) * u.y).abs() <= params.inlier_px)
+            .collect();
+        if keep.len() < 2 {
+            return None;
+        }
+        points = keep;
+        line = fit_line(&points)?;
+    }
+    if (points.len() as f64) < params.min_support * (samples + 1) as f64 {
+        return None;
+    }
+    let (c, mut u) = line;
+    if u.dot(&d) < 0.0 {
+        u = -u;
+    }
+    let s: Vec<f64> = points
+        .iter()
+        .map(|p| (p[0] - c.x) * u.x + (p[1] - c.y) * u.y)
+        .collect();
+    let (mut s0, mut s1) = (
+        s.iter().copied().fold(f64::MAX, f64::min),
+        s.iter().copied().fold(f64::MIN, f64::max),
+    );
+    // Extend each end while the edge goes on (two misses in a row stop it).
+    let n = Vector2::new(u.y, -u.x);
+    let on_edge = |t: f64| {
+        let p = c + u * t;
+        edge_along(img, [p.x, p.y], n, 1.0, params).is_some()
+    };
+    for (end, sign) in [(&mut s1, 1.0), (&mut s0, -1.0)] {
+        let mut misses = 0;
+        let mut t = *end;
+        while misses < 2 {
+            t += sign * params.spacing_px / 2.0;
+            if on_edge(t) {
+                *end = t;
+                misses = 0;
+            } else {
+                misses += 1;
+            }
+        }
+    }
+    let a = c + u * s0;
+    let b = c + u * s1;
+    Some(Segment::new([a.x, a.y], [b.x, b.y]))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A synthetic image: dark background, a bright quadrilateral, plus a little
+    /// deterministic texture.
+    fn square(width: usize, height: usize, corners: [[f64; 2]; 4]) -> Gray {
+        let mut data = vec![0f32; width * height];
+        let inside = |x: f64, y: f64| {
+            (0..4).all(|i| {
+                let (a, b) = (corners[i], corners[(i + 1) % 4]);
+                (b[0] - a[0]) * (y - a[1]) - (b[1] - a[1]) * (x - a[0]) >= 0.0
+            })
+        };
+        for y in 0..height {
+            for x in 0..width {
+                // 4 x 4 supersampling for anti-aliased edges.
+                let mut cover = 0.0;
+                for sy in 0..4 {
+                    for sx in 0..4 {
+                        let (px, py) = (
+                            x as f64 + (sx as f64 + 0.5) / 4.0 - 0.5,
+                            y as f64 + (sy as f64 + 0.5) / 4.0 - 0.5,
+                        );
+                        if inside(px, py) {
+                            cover += 1.0 / 16.0;
+                        }
+                    }
+                }
+                let texture = ((x * 7 + y * 13) % 5) as f64;
+                data[y * width + x] = (40.0 + 150.0 * cover + texture) as f32;
+            }
+        }
+        Gray {
+            width,
+            height,
+            data,
+        }
+    }
+
+    fn dist_to_edge(p: [f64; 2], a: [f64; 2], b: [f64; 2]) -> f64 {
+        Segment::new(a, b).line_distance(p).abs()
+    }
+
+    #[test]
+    fn detects_the_sides_of_a_rotated_square_within_half_a_pixel() {
+        let c = [[60.0, 40.0], [180.0, 70.0], [150.0, 190.0], [30.0, 160.0]];
+        let img = square(240, 220, c);
+        let segs = detect(&img, &DetectParams::default());
+        assert_eq!(segs.len(), 4, "{segs:?}");
+        for s in &segs {
+            let best = (0..4)
+                .map(|i| {
+                    dist_to_edge(s.a, c[i], c[(i + 1) % 4]).max(dist_to_edge(
+                        s.b,
+                        c[i],
+                        c[(i + 1) % 4],
+                    ))
+                })
+                .fold(f64::MAX, f64::min);
+            assert!(best < 0.5, "{s:?} is {best:.2} px from every side");
+            assert!(s.length() > 100.0 && s.significance > 10.0, "{s:?}");
+        }
+    }
+
+    #[test]
+    fn pure_noise_yields_no_segment() {
+        let mut state = 12345u64;
+        let data = (0..200 * 200)
+            .map(|_| {
+                state = state
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
+                (state >> 56) as f32
+            })
+            .collect();
+        let img = Gray {
+            width: 200,
+            height: 200,
+            data,
+        };
+        let params = DetectParams {
+            min_length: 0.0,
+            ..DetectParams::default()
+        };
+        assert!(detect(&img, &params).is_empty());
+    }
+
+    #[test]
+    fn tracks_a_moved_edge_from_an_offset_prediction_and_extends_it() {
+        let c = [[60.0, 40.0], [180.0, 70.0], [150.0, 190.0], [30.0, 160.0]];
+        let img = square(240, 220, c);
+        let found = detect(&img, &DetectParams::default());
+        // The same image, the square moved by (3, -2) px; predict from the old segments,
+        // shortened to their middle half.
+        let moved = square(240, 220, c.map(|p| [p[0] + 3.0, p[1] - 2.0]));
+        for s in &found {
+            let l = s.length();
+            let predicted = Segment::new(s.at(0.25 * l), s.at(0.75 * l));
+            let t = track(&moved, &predicted, &TrackParams::default()).expect("tracked");
+            let side = (0..4)
+                .map(|i| [c[i], c[(i + 1) % 4]].map(|p| [p[0] + 3.0, p[1] - 2.0]))
+                .min_by(|x, y| {
+                    dist_to_edge(t.a, x[0], x[1]).total_cmp(&dist_to_edge(t.a, y[0], y[1]))
+                })
+                .unwrap();
+            for p in [t.a, t.b] {
+                assert!(dist_to_edge(p, side[0], side[1]) < 0.5, "{t:?} vs {side:?}");
+            }
+            // Extended to (nearly) the whole side, not just the predicted half.
+            assert!(t.length() > 0.85 * l, "{} of {l}", t.length());
+        }
+    }
+
+    #[test]
+    fn binomial_tail_matches_direct_sums() {
+        for (n, k, p) in [(10u64, 3u64, 0.125f64), (50, 20, 0.125), (200, 5, 0.3)] {
+            let direct: f64 = (k..=n)
+                .map(|i| {
+                    let c = (ln_gamma(n as f64 + 1.0)
+                        - ln_gamma(i as f64 + 1.0)
+                        - ln_gamma((n - i) as f64 + 1.0))
+                    .exp();
+                    c * p.powi(i as i32) * (1.0 - p).powi((n - i) as i32)
+                })
+                .sum();
+            let got = 10f64.powf(log10_binomial_tail(n, k, p));
+            assert!(
+                (got - direct).abs() < 1e-9 * direct.max(1e-300),
+                "{got} vs {direct}"
+            );
+        }
+        assert!((ln_gamma(5.0) - 24f64.ln()).abs() < 1e-12);
+    }
+}
