@@ -10,18 +10,26 @@
 //! following behaviour ([`execute`]). [`validate`] re-checks a plan's invariants from its
 //! schedule alone.
 //!
+//! Executed in the simulator, the mission runs as robot software: [`ParentStack`] plans,
+//! drives its tour, tracks the children and teleoperates them by radio ([`team`]);
+//! [`ChildStack`] obeys, grabs the images and sends them to the parent.
+//!
 //! Every decision the paper leaves open is stated in the module that makes it and listed in
 //! the repository README ("Coverage planning decisions").
 
 pub mod execute;
 pub mod map;
+pub mod parent;
 pub mod roadmap;
 pub mod select;
+pub mod team;
 pub mod validate;
 pub mod visibility;
 
 pub use execute::{plan, plan_with, Frame, Phase, Plan, PlanError};
 pub use map::{Map, Vertex};
+pub use parent::{ParentParams, ParentStack};
+pub use team::{ChildParams, ChildStack};
 pub use validate::validate;
 pub use visibility::Visibility;
 
@@ -72,6 +80,9 @@ pub struct CoverageParams {
     pub direction: Direction,
     /// The children's camera opening angle, degrees (80 in the seed).
     pub child_fov_deg: f64,
+    /// Extra angle on each side of a child's view when checking that no robot is in an
+    /// image, degrees (0 in the seed).
+    pub view_margin_deg: f64,
     /// Radius of the parent's footprint, metres.
     pub parent_radius_m: f64,
     /// Radius of a child's footprint, metres (0.06 for a c't-Bot).
@@ -88,6 +99,7 @@ impl Default for CoverageParams {
             r_los_m: 2.0,
             direction: Direction::East,
             child_fov_deg: 80.0,
+            view_margin_deg: 0.0,
             parent_radius_m: 0.225,
             child_radius_m: 0.06,
             children: 3,

@@ -73,7 +73,7 @@ pub fn in_view(map: &Map, params: &CoverageParams, w: Vertex, u: Vertex, radius_
     let (dx, dy) = params.direction.unit();
     let cos = (vx * dx + vy * dy) / vx.hypot(vy);
     let angle = cos.clamp(-1.0, 1.0).acos();
-    let half = params.child_fov_deg.to_radians() / 2.0;
+    let half = (params.child_fov_deg / 2.0 + params.view_margin_deg).to_radians();
     let widen = (radius_m / d).min(1.0).asin();
     angle <= half + widen + 1e-12 && line_of_sight(map, w, u)
 }
@@ -140,6 +140,7 @@ mod tests {
             r_los_m: 2.0,
             direction: Direction::East,
             child_fov_deg: 80.0,
+            view_margin_deg: 0.0,
             parent_radius_m: 0.2,
             child_radius_m: 0.06,
             children: 3,

@@ -22,7 +22,8 @@ mod stack;
 pub use command::Command;
 pub use geometry::{pose_from_xyz_rpy, wrap_angle, yaw_of, Pose};
 pub use message::{
-    ChildTracks, CompassReading, Delivered, GpsFix, Image, ImuSample, LaserScan, Mission,
-    OccupancyGrid, Outgoing, PoseStamped, Rendezvous, SensorMsg, Track, WheelOdometry,
+    ChildTracks, CompassReading, CoverageMission, DatabaseImage, Delivered, GpsFix, Image,
+    ImuSample, LaserScan, Mission, OccupancyGrid, Outgoing, PoseStamped, Rendezvous, SensorMsg,
+    TeamReport, Track, WheelOdometry,
 };
 pub use stack::{RobotStack, StackStatus};

@@ -78,6 +78,85 @@ pub enum Mission {
     },
     /// Stay where it is.
     Idle,
+    /// Lead a cooperative coverage mapping mission (seed 002): plan on the map, drive the
+    /// tour, track and teleoperate the children, store their images.
+    CoverageParent(CoverageMission),
+    /// Be a child of a coverage mission: obey the parent's orders received by radio.
+    Teleoperated {
+        /// The parent robot's name.
+        parent: String,
+    },
+}
+
+/// What a coverage parent is given (seed 002, Sections III-IV): the range map the paper
+/// assumes exists before the mission, the team, and the mapping parameters.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct CoverageMission {
+    /// The occupancy map at the grid resolution d.
+    pub grid: OccupancyGrid,
+    /// The children, by name, and their start cells `(col, row)`.
+    pub children: Vec<(String, (usize, usize))>,
+    /// Line-of-sight radius r_los, metres.
+    pub r_los_m: f64,
+    /// Direction of mapping: "east", "north", "west" or "south".
+    pub direction: String,
+    /// The children's camera opening angle, degrees.
+    pub child_fov_deg: f64,
+    /// Extra angle on each side of a child's view when keeping robots out of images, degrees.
+    pub view_margin_deg: f64,
+    /// Radius of the parent's footprint, metres.
+    pub parent_radius_m: f64,
+    /// Radius of a child's footprint, metres.
+    pub child_radius_m: f64,
+    /// Candidate distance factor f (Eq. 6).
+    pub f_factor: f64,
+    /// Children's driving speed, metres per second (0.15 in the seed).
+    pub child_speed_mps: f64,
+}
+
+/// One image of a coverage mission's database, as the parent stored it.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct DatabaseImage {
+    /// The grid vertex `(col, row)` it was taken at.
+    pub vertex: (usize, usize),
+    /// The child that took it.
+    pub child: String,
+    /// The parent's estimate of the grab position (tracker), metres.
+    pub estimated_xy: [f64; 2],
+    /// The child's compass heading at the grab, radians.
+    pub estimated_heading_rad: f64,
+    /// The image (its stamp is the grab time).
+    pub image: Image,
+}
+
+/// Positions of a robot over time: `(stamp_ns, [x, y])`, metres.
+pub type TrackedPath = Vec<(u64, [f64; 2])>;
+
+/// What a coverage parent reports at the end of a run.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct TeamReport {
+    /// Free vertices of the map |V|.
+    pub vertices: usize,
+    /// Parent vertices V_p in tour order, `(col, row)`.
+    pub parent_vertices: Vec<(usize, usize)>,
+    /// Vertices the plan could not image (uncoverable or unreached), `(col, row)`.
+    pub unplanned: Vec<(usize, usize)>,
+    /// Vertices the plan imaged but the execution gave up on, `(col, row)`.
+    pub abandoned: Vec<(usize, usize)>,
+    /// The image database.
+    pub database: Vec<DatabaseImage>,
+    /// Times a child expected in view was not tracked and had to be stopped.
+    pub tracking_losses: u32,
+    /// Orders sent again because no acknowledgement came.
+    pub resent_orders: u32,
+    /// When the last step of the plan was done, nanoseconds; `None` while unfinished.
+    pub finished_ns: Option<u64>,
+    /// Steps of the plan (timesteps) executed, and in the plan.
+    pub steps_done: usize,
+    /// Steps of the plan.
+    pub steps_total: usize,
+    /// Every child's positions as the parent's tracker measured them.
+    pub tracked_paths: Vec<(String, TrackedPath)>,
 }
 
 /// A compass heading.

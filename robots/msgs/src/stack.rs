@@ -1,6 +1,6 @@
 //! The interface every robot stack implements.
 
-use crate::{Command, Outgoing, Pose, SensorMsg};
+use crate::{Command, Outgoing, Pose, SensorMsg, TeamReport};
 use serde::{Deserialize, Serialize};
 
 /// How far a stack has got with its mission.
@@ -43,5 +43,23 @@ pub trait RobotStack: Send {
     /// `(stamp_ns, world_from_body)`; the engine writes them as `<name>/<robot>.tum`.
     fn trajectories(&self) -> Vec<(String, Vec<(u64, Pose)>)> {
         Vec::new()
+    }
+
+    /// Whether the stack wants its cameras' images now. The engine renders a camera only
+    /// when its robot wants images (a child that grabs on demand saves the renderer the
+    /// frames it would drop); the camera's timing does not change.
+    fn wants_images(&self) -> bool {
+        true
+    }
+
+    /// A coverage parent's report (its image database and mission figures).
+    fn team_report(&self) -> Option<TeamReport> {
+        None
+    }
+
+    /// Whether the stack's mission is over and the run may end (a coverage parent whose
+    /// plan is done). The engine ends a run two seconds after any stack says so.
+    fn mission_over(&self) -> bool {
+        false
     }
 }

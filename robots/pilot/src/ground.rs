@@ -71,7 +71,7 @@ impl GroundPilot {
         let goals_total = match &mission {
             Mission::Waypoints(w) => w.len(),
             Mission::GridGoals { goals, .. } => goals.len(),
-            Mission::Idle => 0,
+            Mission::Idle | Mission::CoverageParent(_) | Mission::Teleoperated { .. } => 0,
         };
         Self {
             params,
@@ -98,7 +98,7 @@ impl GroundPilot {
                     goal: Some(i),
                 })
                 .collect(),
-            Mission::Idle => Vec::new(),
+            Mission::Idle | Mission::CoverageParent(_) | Mission::Teleoperated { .. } => Vec::new(),
             Mission::GridGoals { grid, goals } => {
                 let t = start.translation.vector;
                 let Some(mut here) = grid.cell_of(t.x, t.y) else {

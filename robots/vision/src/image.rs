@@ -173,7 +173,11 @@ mod tests {
             assert!((back - world).norm() < 1e-9 * (1.0 + world.coords.norm()));
             // The Jacobian of the pixel with respect to the world point is J R^T.
             let j = nalgebra::Matrix2x3::from_fn(|r, c| cam.project_jacobian(&seen)[r][c])
-                * world_from_camera.rotation.to_rotation_matrix().matrix().transpose();
+                * world_from_camera
+                    .rotation
+                    .to_rotation_matrix()
+                    .matrix()
+                    .transpose();
             for k in 0..3 {
                 let h = 1e-5 * (1.0 + seen.z);
                 let mut step = Vector3::zeros();

@@ -69,6 +69,7 @@ pub fn coverage_params(scenario: &Scenario) -> CoverageParams {
         r_los_m: spec.r_los_m,
         direction,
         child_fov_deg: spec.child_fov_deg,
+        view_margin_deg: spec.view_margin_deg,
         parent_radius_m: radius("parent", 0.225),
         child_radius_m: radius("ctbot", 0.06),
         children: spec

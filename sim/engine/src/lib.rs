@@ -22,6 +22,7 @@ pub mod report;
 mod run;
 mod stacks;
 pub mod sweep;
+pub mod team;
 pub mod trajectory;
 
 pub use output::{write_run, RunFiles, WriteError};

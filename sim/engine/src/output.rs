@@ -107,6 +107,9 @@ pub fn write_run(
             .expect("PNG encodes in memory");
         files.push((format!("plots/{}-{}.png", e.kind, e.robot), png));
     }
+    if let Some(team) = &result.team {
+        files.extend(crate::team::files(scenario, team, &result.truth));
+    }
     let metrics = serde_json::to_vec_pretty(&result.metrics).expect("metrics serialize");
     files.push(("metrics.json".to_string(), metrics));
     for (name, bytes) in &files {

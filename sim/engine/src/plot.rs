@@ -296,6 +296,135 @@ pub fn trajectory_plot(truth: &[(u64, [f64; 3])], estimate: &[(u64, [f64; 3])]) 
     img
 }
 
+/// Colours of the children in path plots.
+const CHILDREN: [Rgb<u8>; 6] = [
+    Rgb([204, 0, 0]),
+    Rgb([52, 101, 164]),
+    Rgb([78, 154, 6]),
+    Rgb([117, 80, 123]),
+    Rgb([206, 92, 0]),
+    Rgb([193, 125, 17]),
+];
+
+/// A top view of an occupancy grid: occupied cells grey, vertices as dots; `to_px` maps
+/// world metres to pixels.
+fn grid_canvas(grid: &hetsim_msgs::OccupancyGrid) -> (RgbImage, impl Fn([f64; 2]) -> (f64, f64)) {
+    let (wm, hm) = (
+        grid.cols as f64 * grid.cell_m,
+        grid.rows as f64 * grid.cell_m,
+    );
+    let scale = (900.0 / wm.max(hm)).min(80.0);
+    let pad = 30.0;
+    let (w, h) = (
+        (wm * scale + 2.0 * pad) as u32,
+        (hm * scale + 2.0 * pad) as u32,
+    );
+    let mut img = RgbImage::from_pixel(w, h, BG);
+    let (ox, oy) = (grid.origin_x, grid.origin_y);
+    let to_px = move |p: [f64; 2]| {
+        (
+            pad + (p[0] - ox) * scale,
+            h as f64 - pad - (p[1] - oy) * scale,
+        )
+    };
+    let cell = (scale * grid.cell_m).ceil() as i64;
+    for row in 0..grid.rows {
+        for col in 0..grid.cols {
+            let c = grid.centre_of(col, row);
+            let (x, y) = to_px([c[0] - grid.cell_m / 2.0, c[1] + grid.cell_m / 2.0]);
+            if grid.occupied[row * grid.cols + col] {
+                rect(
+                    &mut img,
+                    x as i64,
+                    y as i64,
+                    cell,
+                    cell,
+                    Rgb([170, 170, 170]),
+                );
+            } else {
+                let (cx, cy) = to_px(c);
+                rect(&mut img, cx as i64 - 1, cy as i64 - 1, 3, 3, INK);
+            }
+        }
+    }
+    // The outline.
+    let (x0, y1) = to_px([ox, oy]);
+    let (x1, y0) = to_px([ox + wm, oy + hm]);
+    for (a, b) in [
+        ((x0, y0), (x1, y0)),
+        ((x1, y0), (x1, y1)),
+        ((x1, y1), (x0, y1)),
+        ((x0, y1), (x0, y0)),
+    ] {
+        line(&mut img, a, b, INK);
+    }
+    (img, to_px)
+}
+
+/// An arrow from `a` to `b` (pixels): a line and a two-stroke head.
+fn arrow(img: &mut RgbImage, a: (f64, f64), b: (f64, f64), color: Rgb<u8>) {
+    line(img, a, b, color);
+    let (dx, dy) = (b.0 - a.0, b.1 - a.1);
+    let len = dx.hypot(dy).max(1e-9);
+    let (ux, uy) = (dx / len, dy / len);
+    for side in [-1.0, 1.0] {
+        let (hx, hy) = (
+            b.0 - 10.0 * ux + side * 5.0 * -uy,
+            b.1 - 10.0 * uy + side * 5.0 * ux,
+        );
+        line(img, b, (hx, hy), color);
+    }
+}
+
+/// Fig. 5(a) of seed 002: the grid of vertices, the parent vertices (squares) and the
+/// parent's tour between them (arrows, in visiting order from the start).
+pub fn coverage_plan_plot(
+    grid: &hetsim_msgs::OccupancyGrid,
+    start: [f64; 2],
+    parent_vertices: &[[f64; 2]],
+) -> RgbImage {
+    let (mut img, to_px) = grid_canvas(grid);
+    let mut previous = to_px(start);
+    for p in parent_vertices {
+        let q = to_px(*p);
+        arrow(&mut img, previous, q, COORDINATION);
+        previous = q;
+    }
+    for p in parent_vertices {
+        let (x, y) = to_px(*p);
+        let s = 12;
+        rect(&mut img, x as i64 - s / 2, y as i64 - s / 2, s, s, MAPPING);
+    }
+    let (sx, sy) = to_px(start);
+    rect(&mut img, sx as i64 - 4, sy as i64 - 4, 8, 8, INK);
+    img
+}
+
+/// Fig. 5(b) of seed 002: the children's paths as the parent's tracker measured them (one
+/// colour per child) and the parent vertices (squares).
+pub fn child_paths_plot(
+    grid: &hetsim_msgs::OccupancyGrid,
+    parent_vertices: &[[f64; 2]],
+    paths: &[Vec<[f64; 2]>],
+) -> RgbImage {
+    let (mut img, to_px) = grid_canvas(grid);
+    for (k, path) in paths.iter().enumerate() {
+        let color = CHILDREN[k % CHILDREN.len()];
+        for pair in path.windows(2) {
+            line(&mut img, to_px(pair[0]), to_px(pair[1]), color);
+        }
+    }
+    for p in parent_vertices {
+        let (x, y) = to_px(*p);
+        let s = 14;
+        rect(&mut img, x as i64 - s / 2, y as i64 - s / 2, s, 2, INK);
+        rect(&mut img, x as i64 - s / 2, y as i64 + s / 2 - 2, s, 2, INK);
+        rect(&mut img, x as i64 - s / 2, y as i64 - s / 2, 2, s, INK);
+        rect(&mut img, x as i64 + s / 2 - 2, y as i64 - s / 2, 2, s, INK);
+    }
+    img
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -339,5 +468,37 @@ mod tests {
             quartiles(&[1.0, 2.0, 3.0, 4.0, 5.0]),
             [1.0, 2.0, 3.0, 4.0, 5.0]
         );
+    }
+
+    #[test]
+    fn coverage_plots_mark_parent_vertices_and_paths() {
+        let grid = hetsim_msgs::OccupancyGrid {
+            origin_x: -2.0,
+            origin_y: -1.0,
+            cell_m: 0.5,
+            cols: 8,
+            rows: 4,
+            occupied: (0..32).map(|i| i == 9).collect(),
+        };
+        let count = |img: &RgbImage, c: Rgb<u8>| img.pixels().filter(|p| **p == c).count();
+        let plan = coverage_plan_plot(&grid, [-1.75, -0.75], &[[0.25, 0.25], [1.25, 0.75]]);
+        assert!(count(&plan, MAPPING) >= 2 * 144, "two parent squares");
+        assert!(count(&plan, COORDINATION) > 100, "the tour");
+        // One occupied 0.5 m cell at 80 px/m (the tour's line may cross it).
+        let grey = count(&plan, Rgb([170, 170, 170]));
+        assert!(
+            (1400..=1600).contains(&grey),
+            "one occupied cell: {grey} px"
+        );
+        let paths = child_paths_plot(
+            &grid,
+            &[[0.25, 0.25]],
+            &[vec![[-1.75, -0.25], [1.75, -0.25]], vec![]],
+        );
+        assert!(
+            count(&paths, CHILDREN[0]) > 2 * 280,
+            "a 3.5 m path at 80 px/m"
+        );
+        assert_eq!(count(&paths, CHILDREN[1]), 0);
     }
 }

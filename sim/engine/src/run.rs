@@ -72,6 +72,9 @@ pub struct Metrics {
     /// Indoor worlds with a `[coverage]` table: the grid-level coverage plan's figures.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub coverage: Option<crate::coverage::CoverageMetrics>,
+    /// A coverage mission run in lockstep: what the team did, against ground truth.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub team: Option<crate::team::TeamMetrics>,
 }
 
 /// Everything a run produced, before it is written.
@@ -86,6 +89,8 @@ pub struct RunResult {
     pub adapter: Option<AdapterSummary>,
     /// Estimated trajectories the stacks kept.
     pub estimates: Vec<Estimate>,
+    /// A coverage mission's outcome (the parent's report).
+    pub team: Option<crate::team::TeamOutcome>,
 }
 
 /// A trajectory a robot stack estimated.
@@ -238,7 +243,15 @@ fn run_on_worker(
     // The initial pose, delivered before the first tick.
     deliver_truth(&mut post, &mut truth, &physics, 0);
     let report_every = (total / 100).max(1);
+    // A mission that ends before the scenario's duration ends the run two seconds later.
+    let mut end = total;
+    let linger = clock.ticks_in(2.0);
+    let mut ticks = 0;
     for tick in 0..total {
+        if tick >= end {
+            break;
+        }
+        ticks = tick + 1;
         let now = clock.time_ns(tick);
         // 1. stacks -> commands (in parallel; collected in robot order)
         let commands: Vec<Command> = stacks
@@ -279,11 +292,22 @@ fn run_on_worker(
         // Cameras (all due ones in one batch).
         if let Some(cams) = cameras.as_mut() {
             let stamp = clock.time_ns(after);
+            // A robot that wants no images now (a child between grabs) gets none rendered;
+            // the dump's frames are rendered whatever the stack wants.
+            let stack_wants: Vec<bool> = stacks.iter().map(|s| s.wants_images()).collect();
             let wanted = |topic: &str| {
-                !frames_only
-                    || dump
-                        .as_ref()
-                        .is_some_and(|d| d.wants(topic) && d.in_window(stamp))
+                let dumped = dump
+                    .as_ref()
+                    .is_some_and(|d| d.wants(topic) && d.in_window(stamp));
+                if frames_only {
+                    return dumped;
+                }
+                let robot = topic.split('/').next().unwrap_or_default();
+                dumped
+                    || names
+                        .iter()
+                        .position(|n| n == robot)
+                        .is_none_or(|i| stack_wants[i])
             };
             for shot in cams.capture(&physics, tick, stamp, &wanted) {
                 if let Some(d) = dump.as_deref_mut() {
@@ -298,19 +322,31 @@ fn run_on_worker(
         for (to, delivered) in comms.deliver(after) {
             post.deliver(to, &radio_topics[to], SensorMsg::Comms(delivered), None);
         }
+        if end == total && stacks.iter().any(|s| s.mission_over()) {
+            end = (tick + 1 + linger).min(total);
+        }
         if tick % report_every == 0 {
             progress(tick, total);
         }
     }
     progress(total, total);
     let statuses: Vec<StackStatus> = stacks.iter().map(|s| s.status()).collect();
-    let mut metrics = metrics(scenario, &physics, &statuses, total, post.digest.records());
+    let mut metrics = metrics(scenario, &physics, &statuses, ticks, post.digest.records());
     metrics.messages = post.counts;
     metrics.comms = comms.stats.clone();
     if let Some(d) = dump.as_deref() {
         d.finish().map_err(RunError::Frames)?;
     }
     let adapter = cameras.as_ref().map(|c| c.adapter().clone());
+    let team = stacks.iter().enumerate().find_map(|(i, s)| {
+        s.team_report().map(|report| crate::team::TeamOutcome {
+            parent: names[i].clone(),
+            report,
+        })
+    });
+    metrics.team = team
+        .as_ref()
+        .map(|t| crate::team::TeamMetrics::compute(scenario, &physics, t, &truth, &metrics.robots));
     let mut estimates = Vec::new();
     for (i, stack) in stacks.iter().enumerate() {
         for (kind, poses) in stack.trajectories() {
@@ -339,6 +375,7 @@ fn run_on_worker(
         digest: post.digest,
         adapter,
         estimates,
+        team,
     })
 }
 
@@ -386,6 +423,7 @@ fn metrics(
         messages: BTreeMap::new(),
         comms: CommsStats::default(),
         estimates: BTreeMap::new(),
+        team: None,
         coverage: scenario
             .file
             .coverage

@@ -61,6 +61,9 @@ fn build_pilot(scenario: &Scenario, robot: &ResolvedRobot) -> Box<dyn RobotStack
     let model = &robot.model;
     let pilot = &model.pilot;
     let mission = mission(scenario, &robot.spec.mission);
+    if let Some(stack) = coverage_stack(robot, &mission) {
+        return stack;
+    }
     match model.body.drive {
         DriveKind::Helicopter => {
             let h = model
@@ -85,32 +88,65 @@ fn build_pilot(scenario: &Scenario, robot: &ResolvedRobot) -> Box<dyn RobotStack
             ))
         }
         DriveKind::SkidSteer | DriveKind::Differential => {
+            Box::new(GroundPilot::new(ground_params(robot), mission))
+        }
+    }
+}
+
+/// The waypoint pilot's parameters of a wheeled robot.
+fn ground_params(robot: &ResolvedRobot) -> GroundPilotParams {
+    let model = &robot.model;
+    let pilot = &model.pilot;
+    let w = model
+        .body
+        .wheels
+        .as_ref()
+        .expect("validated wheeled robot has [body.wheels]");
+    let steering = match pilot.steering {
+        SteeringKind::Smooth => Steering::Smooth {
+            turn_in_place_rad: 60f64.to_radians(),
+        },
+        SteeringKind::RotateThenDrive => Steering::RotateThenDrive {
+            reaim_m: pilot.reaim_m.unwrap_or(0.2),
+            aim_tolerance_rad: pilot.aim_tolerance_deg.unwrap_or(2.0).to_radians(),
+        },
+    };
+    GroundPilotParams {
+        track_m: w.track_m,
+        max_wheel_mps: model.body.max_speed_mps,
+        cruise_mps: pilot.cruise_mps,
+        max_yaw_rate_radps: model.body.max_yaw_rate_deg_s.to_radians(),
+        arrive_m: pilot.arrive_m,
+        steering,
+    }
+}
+
+/// The coverage mission's stacks (seed 002): the parent and its teleoperated children.
+fn coverage_stack(robot: &ResolvedRobot, mission: &Mission) -> Option<Box<dyn RobotStack>> {
+    match mission {
+        Mission::CoverageParent(_) => Some(Box::new(hetsim_coverage::ParentStack::new(
+            hetsim_coverage::ParentParams::with_pilot(ground_params(robot)),
+            mission,
+        ))),
+        Mission::Teleoperated { .. } => {
+            let model = &robot.model;
             let w = model
                 .body
                 .wheels
                 .as_ref()
                 .expect("validated wheeled robot has [body.wheels]");
-            let steering = match pilot.steering {
-                SteeringKind::Smooth => Steering::Smooth {
-                    turn_in_place_rad: 60f64.to_radians(),
-                },
-                SteeringKind::RotateThenDrive => Steering::RotateThenDrive {
-                    reaim_m: pilot.reaim_m.unwrap_or(0.2),
-                    aim_tolerance_rad: pilot.aim_tolerance_deg.unwrap_or(2.0).to_radians(),
-                },
-            };
-            Box::new(GroundPilot::new(
-                GroundPilotParams {
+            Some(Box::new(hetsim_coverage::ChildStack::new(
+                hetsim_coverage::ChildParams {
                     track_m: w.track_m,
-                    max_wheel_mps: model.body.max_speed_mps,
-                    cruise_mps: pilot.cruise_mps,
-                    max_yaw_rate_radps: model.body.max_yaw_rate_deg_s.to_radians(),
-                    arrive_m: pilot.arrive_m,
-                    steering,
+                    speed_mps: model.pilot.cruise_mps,
+                    max_turn_radps: model.body.max_yaw_rate_deg_s.to_radians().min(1.0),
+                    aim_tolerance_rad: model.pilot.aim_tolerance_deg.unwrap_or(2.0).to_radians(),
+                    settle_ns: 200_000_000,
                 },
                 mission,
-            ))
+            )))
         }
+        _ => None,
     }
 }
 
@@ -136,6 +172,47 @@ fn mission(scenario: &Scenario, spec: &MissionSpec) -> Mission {
             route.extend(then.iter().map(|p| [p[0], p[1], *altitude_m]));
             Mission::Waypoints(route)
         }
+        MissionSpec::CoverageParent => match &scenario.world.grid {
+            Some(g) => {
+                let params = crate::coverage::coverage_params(scenario);
+                let children = scenario
+                    .robots
+                    .iter()
+                    .filter(|r| matches!(r.spec.mission, MissionSpec::CoverageChild))
+                    .filter_map(|r| {
+                        g.grid
+                            .cell_of(r.spec.start.x, r.spec.start.y)
+                            .map(|cell| (r.spec.name.clone(), cell))
+                    })
+                    .collect::<Vec<_>>();
+                let child_speed_mps = scenario
+                    .robots
+                    .iter()
+                    .find(|r| matches!(r.spec.mission, MissionSpec::CoverageChild))
+                    .map_or(0.15, |r| r.model.pilot.cruise_mps);
+                Mission::CoverageParent(hetsim_msgs::CoverageMission {
+                    grid: g.grid.clone(),
+                    children,
+                    r_los_m: params.r_los_m,
+                    direction: format!("{:?}", params.direction).to_lowercase(),
+                    child_fov_deg: params.child_fov_deg,
+                    view_margin_deg: params.view_margin_deg,
+                    parent_radius_m: params.parent_radius_m,
+                    child_radius_m: params.child_radius_m,
+                    f_factor: params.f_factor,
+                    child_speed_mps,
+                })
+            }
+            None => Mission::Idle,
+        },
+        MissionSpec::CoverageChild => Mission::Teleoperated {
+            parent: scenario
+                .robots
+                .iter()
+                .find(|r| matches!(r.spec.mission, MissionSpec::CoverageParent))
+                .map(|r| r.spec.name.clone())
+                .unwrap_or_default(),
+        },
         MissionSpec::GridGoals { goals } => match &scenario.world.grid {
             Some(g) => Mission::GridGoals {
                 grid: g.grid.clone(),

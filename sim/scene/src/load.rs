@@ -298,6 +298,53 @@ fn check_missions(
                 "a height above the ground > 0 metres for a helicopter",
             ));
         }
+        let coverage = matches!(
+            r.spec.mission,
+            MissionSpec::CoverageParent | MissionSpec::CoverageChild
+        );
+        if heli && coverage {
+            return Err(c.error_at(
+                &["robots", &idx, "mission", "kind"],
+                format!("{:?}", r.spec.mission),
+                "idle, waypoints or lawnmower for a helicopter",
+            ));
+        }
+        let has = |kind: &str| r.model.sensors.iter().any(|s| s.kind() == kind);
+        if matches!(r.spec.mission, MissionSpec::CoverageParent) && !has("child_tracker") {
+            return Err(c.error_at(
+                &["robots", &idx, "mission", "kind"],
+                "\"coverage_parent\"",
+                format!(
+                    "a robot with a child_tracker sensor ({} has none)",
+                    r.spec.model
+                ),
+            ));
+        }
+        if matches!(r.spec.mission, MissionSpec::CoverageChild)
+            && !(has("compass") && has("camera") && has("wheel_odometry"))
+        {
+            return Err(c.error_at(
+                &["robots", &idx, "mission", "kind"],
+                "\"coverage_child\"",
+                format!(
+                    "a robot with a camera, a compass and wheel_odometry ({} lacks one)",
+                    r.spec.model
+                ),
+            ));
+        }
+        if matches!(r.spec.mission, MissionSpec::CoverageChild) {
+            let parents = robots
+                .iter()
+                .filter(|p| matches!(p.spec.mission, MissionSpec::CoverageParent))
+                .count();
+            if parents != 1 {
+                return Err(c.error_at(
+                    &["robots", &idx, "mission", "kind"],
+                    "\"coverage_child\"",
+                    format!("exactly one robot with mission coverage_parent in the scenario (found {parents})"),
+                ));
+            }
+        }
         if let (MissionSpec::GridGoals { goals }, WorldKind::IndoorGrid) =
             (&r.spec.mission, file.world.kind)
         {

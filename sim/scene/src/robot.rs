@@ -360,6 +360,22 @@ pub enum Sensor {
 }
 
 impl Sensor {
+    /// The sensor's kind as written in robot files (`camera`, `compass`, ...).
+    pub fn kind(&self) -> &'static str {
+        match self {
+            Sensor::Camera { .. } => "camera",
+            Sensor::StereoCamera { .. } => "stereo_camera",
+            Sensor::OmniCamera { .. } => "omni_camera",
+            Sensor::Compass { .. } => "compass",
+            Sensor::Gps { .. } => "gps",
+            Sensor::Laser { .. } => "laser",
+            Sensor::ChildTracker { .. } => "child_tracker",
+            Sensor::WheelOdometry { .. } => "wheel_odometry",
+            Sensor::Imu { .. } => "imu",
+            Sensor::Rendezvous { .. } => "rendezvous",
+        }
+    }
+
     /// The sensor's name.
     pub fn name(&self) -> &str {
         match self {

@@ -1,0 +1,748 @@
+//! The parent robot's software: plans the mission, drives its tour, tracks the children and
+//! teleoperates them over the radio so that an image is taken at every child vertex (seed
+//! 002, Sections III, IV.D and V.B).
+//!
+//! Decisions:
+//! * **Map.** The parent is given the occupancy map at resolution d ([`CoverageMission`]),
+//!   as the seed assumes ("a range map of the environment was created before, e.g., by the
+//!   parent robot"); building it is not part of this mission.
+//! * **Localization.** The parent localizes accurately, as in the seed: it uses its true
+//!   pose. It drives between vertices by rotating in place, then straight.
+//! * **Execution.** The grid-level plan ([`crate::plan`]) is executed timestep by timestep:
+//!   the robots that move in a timestep are driven to their next vertex together; when all
+//!   have arrived, the timestep's grabs are ordered; when all images are in, the next
+//!   timestep starts. A robot moving onto a vertex that another robot leaves in the same
+//!   timestep starts when that robot has arrived. The plan keeps robots on distinct vertices and out of each other's
+//!   views at grab time, so this execution inherits its collision and view guarantees up to
+//!   the children's position errors.
+//! * **Teleoperation** (Section V.B). To send a child to a vertex, the parent takes the
+//!   child's tracked position, orders a drive towards the goal (the child rotates by
+//!   compass, then drives straight for the distance by its encoders), re-aims it once when it
+//!   is within 0.2 m of the goal, and, when the drive is done, accepts the position if it is
+//!   within `arrive_m` of the goal or orders a correction (at most three).
+//! * **Out of view.** A child the parent should not see (farther than r_los, or no line of
+//!   sight on the map; this happens in the following behaviour) is driven open loop: its
+//!   position is dead-reckoned from the drive it reported, until the tracker sees it again;
+//!   an idle child found more than `2 arrive_m` from its planned vertex is driven back there.
+//! * **Stuck.** A tracked child whose drive should long be over is driven again from where
+//!   it is; a child whose encoders stall while driving ends the drive itself (see
+//!   [`crate::team`]).
+//! * **Lost track.** A child that should be in view but has not been tracked for
+//!   `lost_after_ns` while driving is stopped at once (a tracking loss); it is driven on when
+//!   the tracker finds it again. After `give_up_ns` without a track its step is abandoned
+//!   and reported, and the mission goes on with the position it was sent to.
+//! * **Radio.** Orders are repeated every `resend_ns` until acknowledged, and a drive or grab
+//!   whose reply does not come is ordered again; see [`crate::team`].
+
+use crate::map::{Map, Vertex};
+use crate::team::{Order, TeamMsg};
+use crate::visibility::line_of_sight;
+use crate::{plan, CoverageParams, Direction, Plan};
+use hetsim_msgs::{
+    Command, CoverageMission, DatabaseImage, Mission, Outgoing, Pose, PoseStamped, RobotStack,
+    SensorMsg, StackStatus, TeamReport,
+};
+use hetsim_pilot::{GroundPilot, GroundPilotParams};
+
+/// Tuning of the parent's teleoperation.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ParentParams {
+    /// The parent's own pilot.
+    pub pilot: GroundPilotParams,
+    /// A child within this of its goal has arrived, metres.
+    pub arrive_m: f64,
+    /// Re-aim distance, metres (0.2 in the seed).
+    pub reaim_m: f64,
+    /// A track older than this is no track, nanoseconds.
+    pub track_timeout_ns: u64,
+    /// A child in view untracked for this long while driving is stopped, nanoseconds.
+    pub lost_after_ns: u64,
+    /// A lost child is given up after this long, nanoseconds.
+    pub give_up_ns: u64,
+    /// Unacknowledged orders are repeated this often, nanoseconds.
+    pub resend_ns: u64,
+}
+
+impl ParentParams {
+    /// The defaults used by the simulator, for a parent driven by `pilot`. The parent drives
+    /// between vertices by rotating in place and then straight (its footprint leaves a few
+    /// centimetres on each side of a cell, too little for curved approaches).
+    pub fn with_pilot(pilot: GroundPilotParams) -> Self {
+        Self {
+            pilot: GroundPilotParams {
+                steering: hetsim_pilot::Steering::RotateThenDrive {
+                    reaim_m: 0.1,
+                    aim_tolerance_rad: 1f64.to_radians(),
+                },
+                ..pilot
+            },
+            arrive_m: 0.07,
+            reaim_m: 0.2,
+            track_timeout_ns: 300_000_000,
+            lost_after_ns: 500_000_000,
+            give_up_ns: 30_000_000_000,
+            resend_ns: 500_000_000,
+        }
+    }
+}
+
+#[derive(Clone, Debug, PartialEq)]
+enum Task {
+    Idle,
+    Move {
+        goal: [f64; 2],
+        reaimed: bool,
+        corrections: u32,
+        /// The drive order in flight: when its reply is due, nanoseconds.
+        due_ns: u64,
+        /// Where the child was believed to be when the drive was ordered.
+        from: [f64; 2],
+    },
+    Lost {
+        goal: [f64; 2],
+        since_ns: u64,
+        corrections: u32,
+    },
+    Grab {
+        vertex: (usize, usize),
+        sent_ns: u64,
+        fixes: Vec<[f64; 2]>,
+    },
+}
+
+struct Child {
+    name: String,
+    /// Where the plan has the child: its current or next vertex's centre.
+    planned: [f64; 2],
+    estimate: [f64; 2],
+    last_fix_ns: Option<u64>,
+    seq: u32,
+    order: Option<Order>,
+    acked: bool,
+    sent_ns: u64,
+    task: Task,
+    path: Vec<(u64, [f64; 2])>,
+}
+
+/// The parent's software.
+pub struct ParentStack {
+    params: ParentParams,
+    mission: CoverageMission,
+    coverage: CoverageParams,
+    map: Map,
+    plan: Option<Plan>,
+    plan_failed: bool,
+    pose: Option<Pose>,
+    step_index: usize,
+    grabbing: bool,
+    pilot: Option<GroundPilot>,
+    /// Moves of the current timestep not started yet: (robot, target, the robot leaving the
+    /// target); robot 0 is the parent, robot k the k-th child.
+    waiting: Vec<(usize, Vertex, Option<usize>)>,
+    children: Vec<Child>,
+    report: TeamReport,
+    outbox: Vec<Outgoing>,
+    now_ns: u64,
+}
+
+fn direction(name: &str) -> Direction {
+    match name {
+        "north" => Direction::North,
+        "west" => Direction::West,
+        "south" => Direction::South,
+        _ => Direction::East,
+    }
+}
+
+fn dist(a: [f64; 2], b: [f64; 2]) -> f64 {
+    (a[0] - b[0]).hypot(a[1] - b[1])
+}
+
+impl ParentStack {
+    /// A parent for `mission` (a [`Mission::CoverageParent`]; any other leaves it idle).
+    pub fn new(params: ParentParams, mission: &Mission) -> Self {
+        let mission = match mission {
+            Mission::CoverageParent(m) => m.clone(),
+            _ => CoverageMission {
+                grid: hetsim_msgs::OccupancyGrid {
+                    origin_x: 0.0,
+                    origin_y: 0.0,
+                    cell_m: 1.0,
+                    cols: 0,
+                    rows: 0,
+                    occupied: Vec::new(),
+                },
+                children: Vec::new(),
+                r_los_m: 2.0,
+                direction: "east".into(),
+                child_fov_deg: 80.0,
+                view_margin_deg: 0.0,
+                parent_radius_m: 0.225,
+                child_radius_m: 0.06,
+                f_factor: 2.0,
+                child_speed_mps: 0.15,
+            },
+        };
+        let coverage = CoverageParams {
+            r_los_m: mission.r_los_m,
+            direction: direction(&mission.direction),
+            child_fov_deg: mission.child_fov_deg,
+            view_margin_deg: mission.view_margin_deg,
+            parent_radius_m: mission.parent_radius_m,
+            child_radius_m: mission.child_radius_m,
+            children: mission.children.len().max(1),
+            f_factor: mission.f_factor,
+        };
+        let children = mission
+            .children
+            .iter()
+            .map(|(name, (c, r))| Child {
+                name: name.clone(),
+                planned: mission.grid.centre_of(*c, *r),
+                estimate: mission.grid.centre_of(*c, *r),
+                last_fix_ns: None,
+                seq: 0,
+                order: None,
+                acked: true,
+                sent_ns: 0,
+                task: Task::Idle,
+                path: Vec::new(),
+            })
+            .collect();
+        Self {
+            params,
+            map: Map::from_grid(&mission.grid),
+            mission,
+            coverage,
+            plan: None,
+            plan_failed: false,
+            pose: None,
+            step_index: 0,
+            grabbing: false,
+            pilot: None,
+            waiting: Vec::new(),
+            children,
+            report: TeamReport::default(),
+            outbox: Vec::new(),
+            now_ns: 0,
+        }
+    }
+
+    fn centre(&self, v: Vertex) -> [f64; 2] {
+        let (c, r) = self.map.cell(v);
+        self.mission.grid.centre_of(c, r)
+    }
+
+    fn vertex_at(&self, p: [f64; 2]) -> Option<Vertex> {
+        self.mission
+            .grid
+            .cell_of(p[0], p[1])
+            .and_then(|(c, r)| self.map.at(c as i64, r as i64))
+    }
+
+    fn order(&mut self, i: usize, order: Order) {
+        let child = &mut self.children[i];
+        child.seq += 1;
+        child.order = Some(order);
+        child.acked = false;
+        child.sent_ns = self.now_ns;
+        let msg = TeamMsg::Order {
+            seq: child.seq,
+            order,
+        };
+        self.outbox.push(msg.to(&child.name));
+    }
+
+    fn resend(&mut self, i: usize) {
+        let child = &mut self.children[i];
+        if let Some(order) = child.order {
+            child.sent_ns = self.now_ns;
+            self.report.resent_orders += 1;
+            let msg = TeamMsg::Order {
+                seq: child.seq,
+                order,
+            };
+            self.outbox.push(msg.to(&child.name));
+        }
+    }
+
+    fn tracked(&self, i: usize) -> bool {
+        self.children[i]
+            .last_fix_ns
+            .is_some_and(|t| self.now_ns.saturating_sub(t) <= self.params.track_timeout_ns)
+    }
+
+    /// Whether the parent should see child `i` where it believes the child is.
+    fn expected_in_view(&self, i: usize) -> bool {
+        let Some(pose) = self.pose else {
+            return false;
+        };
+        let here = [pose.translation.vector.x, pose.translation.vector.y];
+        let est = self.children[i].estimate;
+        if dist(here, est) > self.coverage.r_los_m - 0.15 {
+            return false;
+        }
+        match (self.vertex_at(here), self.vertex_at(est)) {
+            (Some(a), Some(b)) => line_of_sight(&self.map, a, b),
+            _ => false,
+        }
+    }
+
+    /// Orders child `i` towards `goal`; returns when the drive should be over (a half turn
+    /// at the child's slowest turn rate, the drive, and two seconds of radio and margin).
+    fn drive_towards(&mut self, i: usize, goal: [f64; 2]) -> u64 {
+        let est = self.children[i].estimate;
+        let heading = (goal[1] - est[1]).atan2(goal[0] - est[0]);
+        let d = dist(goal, est);
+        self.order(
+            i,
+            Order::Drive {
+                heading_rad: heading,
+                distance_m: d,
+            },
+        );
+        let secs = std::f64::consts::PI / 0.25 + d / self.mission.child_speed_mps.max(0.01) + 2.0;
+        self.now_ns + (secs * 1e9) as u64
+    }
+
+    fn handle_reply(&mut self, i: usize, msg: TeamMsg) {
+        let seq = self.children[i].seq;
+        match msg {
+            TeamMsg::Ack { seq: s } if s == seq => self.children[i].acked = true,
+            TeamMsg::Done {
+                seq: s,
+                driven_m,
+                heading_rad,
+            } if s == seq => {
+                self.children[i].acked = true;
+                let Task::Move {
+                    goal,
+                    corrections,
+                    from,
+                    ..
+                } = self.children[i].task.clone()
+                else {
+                    return;
+                };
+                if !self.tracked(i) {
+                    // Out of view: dead reckoning from where the drive started (tracks seen
+                    // during the drive are part of what it drove).
+                    let e = &mut self.children[i].estimate;
+                    *e = [
+                        from[0] + driven_m * heading_rad.cos(),
+                        from[1] + driven_m * heading_rad.sin(),
+                    ];
+                    if dist(*e, goal) <= self.params.arrive_m || corrections >= 3 {
+                        self.children[i].task = Task::Idle;
+                        self.children[i].order = None;
+                    } else {
+                        self.start_move(i, goal, corrections + 1);
+                    }
+                    return;
+                }
+                if dist(self.children[i].estimate, goal) <= self.params.arrive_m || corrections >= 3
+                {
+                    self.children[i].task = Task::Idle;
+                    self.children[i].order = None;
+                } else {
+                    self.start_move(i, goal, corrections + 1);
+                }
+            }
+            TeamMsg::Grabbed {
+                seq: s,
+                vertex,
+                heading_rad,
+                image,
+            } if s == seq => {
+                let Task::Grab { fixes, .. } = &self.children[i].task else {
+                    return;
+                };
+                let estimated_xy = if fixes.is_empty() {
+                    self.children[i].estimate
+                } else {
+                    let n = fixes.len() as f64;
+                    [
+                        fixes.iter().map(|f| f[0]).sum::<f64>() / n,
+                        fixes.iter().map(|f| f[1]).sum::<f64>() / n,
+                    ]
+                };
+                self.report.database.push(DatabaseImage {
+                    vertex,
+                    child: self.children[i].name.clone(),
+                    estimated_xy,
+                    estimated_heading_rad: heading_rad,
+                    image,
+                });
+                self.children[i].task = Task::Idle;
+                self.children[i].order = None;
+                self.children[i].acked = true;
+            }
+            _ => {}
+        }
+    }
+
+    fn start_move(&mut self, i: usize, goal: [f64; 2], corrections: u32) {
+        self.children[i].planned = goal;
+        let from = self.children[i].estimate;
+        let d = dist(from, goal);
+        let due_ns = self.drive_towards(i, goal);
+        self.children[i].task = Task::Move {
+            goal,
+            reaimed: d < self.params.reaim_m,
+            corrections,
+            due_ns,
+            from,
+        };
+    }
+
+    /// Per-tick supervision of child `i`.
+    fn supervise(&mut self, i: usize) {
+        let now = self.now_ns;
+        let tracked = self.tracked(i);
+        match self.children[i].task.clone() {
+            Task::Idle => {
+                // Back in view after open-loop moves, and not where the plan has it: drive it
+                // there before anything else happens to it.
+                let planned = self.children[i].planned;
+                if tracked && dist(self.children[i].estimate, planned) > 2.0 * self.params.arrive_m
+                {
+                    self.start_move(i, planned, 0);
+                }
+            }
+            Task::Move {
+                goal,
+                reaimed,
+                corrections,
+                due_ns,
+                ..
+            } => {
+                if !tracked
+                    && self.expected_in_view(i)
+                    && self.children[i]
+                        .last_fix_ns
+                        .is_some_and(|t| now.saturating_sub(t) > self.params.lost_after_ns)
+                {
+                    self.report.tracking_losses += 1;
+                    self.order(i, Order::Stop);
+                    self.children[i].task = Task::Lost {
+                        goal,
+                        since_ns: now,
+                        corrections,
+                    };
+                    return;
+                }
+                if tracked
+                    && !reaimed
+                    && dist(self.children[i].estimate, goal) < self.params.reaim_m
+                {
+                    let from = self.children[i].estimate;
+                    let due_ns = self.drive_towards(i, goal);
+                    self.children[i].task = Task::Move {
+                        goal,
+                        reaimed: true,
+                        corrections,
+                        due_ns,
+                        from,
+                    };
+                    return;
+                }
+                // A drive that should be over. In view, the child is stuck (against furniture,
+                // its encoders not turning): drive it again from where it is. Out of view, its
+                // report was lost on the radio: repeat the order, which the child answers with
+                // its report again.
+                if now > due_ns {
+                    if tracked {
+                        self.start_move(i, goal, corrections + 1);
+                    } else {
+                        self.resend(i);
+                        if let Task::Move { due_ns, .. } = &mut self.children[i].task {
+                            *due_ns = now + 1_000_000_000;
+                        }
+                    }
+                }
+            }
+            Task::Lost {
+                goal,
+                since_ns,
+                corrections,
+            } => {
+                if tracked {
+                    self.start_move(i, goal, corrections);
+                } else if now.saturating_sub(since_ns) > self.params.give_up_ns {
+                    if let Some(v) = self.vertex_at(goal) {
+                        let cell = self.map.cell(v);
+                        self.report.abandoned.push(cell);
+                    }
+                    self.children[i].estimate = goal;
+                    self.children[i].task = Task::Idle;
+                    self.children[i].order = None;
+                }
+            }
+            Task::Grab { sent_ns, .. } => {
+                if now.saturating_sub(sent_ns) > 5_000_000_000 {
+                    // No image: ask again (the child answers a repeated grab with the image
+                    // it took, or goes on taking one).
+                    self.resend(i);
+                    if let Task::Grab { sent_ns, .. } = &mut self.children[i].task {
+                        *sent_ns = now;
+                    }
+                }
+            }
+        }
+        if !self.children[i].acked
+            && self.children[i].order.is_some()
+            && now.saturating_sub(self.children[i].sent_ns) > self.params.resend_ns
+        {
+            self.resend(i);
+        }
+    }
+
+    fn idle(&self) -> bool {
+        self.waiting.is_empty()
+            && self.pilot.is_none()
+            && self.children.iter().all(|c| c.task == Task::Idle)
+    }
+
+    /// Starts the next timestep's moves or grabs when everything is idle.
+    fn advance(&mut self) {
+        let Some(plan) = self.plan.as_ref() else {
+            return;
+        };
+        let total = plan.frames.len();
+        while self.idle() && self.report.finished_ns.is_none() {
+            let plan = self.plan.as_ref().expect("planned");
+            if !self.grabbing && self.step_index < total {
+                // Grabs of the timestep whose moves just finished.
+                let frame = &plan.frames[self.step_index];
+                let grabs = frame.grabs.clone();
+                self.grabbing = true;
+                let heading = {
+                    let (x, y) = self.coverage.direction.unit();
+                    y.atan2(x)
+                };
+                for (child, v) in grabs {
+                    let cell = self.map.cell(v);
+                    self.order(
+                        child,
+                        Order::Grab {
+                            heading_rad: heading,
+                            vertex: cell,
+                        },
+                    );
+                    self.children[child].task = Task::Grab {
+                        vertex: cell,
+                        sent_ns: self.now_ns,
+                        fixes: Vec::new(),
+                    };
+                }
+                continue;
+            }
+            // The next timestep's moves.
+            if self.grabbing {
+                self.step_index += 1;
+                self.report.steps_done = self.step_index;
+            }
+            self.grabbing = false;
+            if self.step_index >= total {
+                self.report.finished_ns = Some(self.now_ns);
+                return;
+            }
+            let previous = if self.step_index == 0 {
+                plan.start.clone()
+            } else {
+                plan.frames[self.step_index - 1].positions.clone()
+            };
+            let next = plan.frames[self.step_index].positions.clone();
+            // A robot moving onto a vertex another robot leaves in the same timestep (a
+            // train) waits until that robot has arrived at its own target.
+            for r in 0..next.len() {
+                if next[r] == previous[r] {
+                    continue;
+                }
+                let blocker = (0..next.len())
+                    .find(|&q| q != r && previous[q] == next[r] && next[q] != previous[q]);
+                self.waiting.push((r, next[r], blocker));
+            }
+            self.release_waiting();
+        }
+    }
+
+    /// Starts the moves of the timestep whose way is clear.
+    fn release_waiting(&mut self) {
+        let mut still = Vec::new();
+        let waiting = std::mem::take(&mut self.waiting);
+        // Robots whose own move has not finished yet: their start or their move is pending.
+        let busy = |s: &Self, q: usize| {
+            waiting.iter().any(|w| w.0 == q)
+                || if q == 0 {
+                    s.pilot.is_some()
+                } else {
+                    s.children[q - 1].task != Task::Idle
+                }
+        };
+        let mut started = Vec::new();
+        for &(r, target, blocker) in &waiting {
+            if blocker.is_some_and(|q| busy(self, q)) {
+                still.push((r, target, blocker));
+                continue;
+            }
+            started.push(r);
+        }
+        for &(r, target, _) in waiting.iter().filter(|w| started.contains(&w.0)) {
+            let goal = self.centre(target);
+            if r == 0 {
+                self.pilot = Some(GroundPilot::new(
+                    self.params.pilot,
+                    Mission::Waypoints(vec![[goal[0], goal[1], 0.0]]),
+                ));
+            } else {
+                self.start_move(r - 1, goal, 0);
+            }
+        }
+        self.waiting = still;
+    }
+
+    fn make_plan(&mut self, pose: &Pose) {
+        let here = [pose.translation.vector.x, pose.translation.vector.y];
+        let starts: Option<Vec<Vertex>> = self
+            .mission
+            .children
+            .iter()
+            .map(|(_, (c, r))| self.map.at(*c as i64, *r as i64))
+            .collect();
+        let result = match (self.vertex_at(here), starts) {
+            (Some(p), Some(kids)) => plan(&self.map, &self.coverage, p, &kids).ok(),
+            _ => None,
+        };
+        match result {
+            Some(p) => {
+                self.report.vertices = p.vertices;
+                self.report.parent_vertices = p
+                    .parent_vertices
+                    .iter()
+                    .map(|v| self.map.cell(*v))
+                    .collect();
+                self.report.unplanned = p
+                    .uncoverable
+                    .iter()
+                    .chain(&p.unreached)
+                    .map(|v| self.map.cell(*v))
+                    .collect();
+                self.report.steps_total = p.frames.len();
+                self.plan = Some(p);
+            }
+            None => {
+                self.plan_failed = true;
+                self.report.finished_ns = Some(self.now_ns);
+            }
+        }
+    }
+}
+
+impl RobotStack for ParentStack {
+    fn step(&mut self, now_ns: u64, inbox: &[SensorMsg]) -> Command {
+        self.now_ns = now_ns;
+        for msg in inbox {
+            match msg {
+                SensorMsg::TruthPose(p) => self.pose = Some(p.pose),
+                SensorMsg::ChildTracks(t) => {
+                    for track in &t.tracks {
+                        let Some(i) = self.children.iter().position(|c| c.name == track.child)
+                        else {
+                            continue;
+                        };
+                        let c = &mut self.children[i];
+                        let fresh = c
+                            .last_fix_ns
+                            .is_none_or(|t0| t.stamp_ns.saturating_sub(t0) > 300_000_000);
+                        // A light low-pass against the tracker's noise; a fresh track after
+                        // a gap is taken as it is.
+                        let alpha = if fresh { 1.0 } else { 0.4 };
+                        c.estimate = [
+                            c.estimate[0] + alpha * (track.position_m[0] - c.estimate[0]),
+                            c.estimate[1] + alpha * (track.position_m[1] - c.estimate[1]),
+                        ];
+                        c.last_fix_ns = Some(t.stamp_ns);
+                        if c.path
+                            .last()
+                            .is_none_or(|(t0, _)| t.stamp_ns >= t0 + 200_000_000)
+                        {
+                            c.path.push((t.stamp_ns, track.position_m));
+                        }
+                        if let Task::Grab { fixes, .. } = &mut c.task {
+                            fixes.push(track.position_m);
+                        }
+                    }
+                }
+                SensorMsg::Comms(d) => {
+                    if let (Some(i), Some(m)) = (
+                        self.children.iter().position(|c| c.name == d.from),
+                        TeamMsg::decode(d),
+                    ) {
+                        self.handle_reply(i, m);
+                    }
+                }
+                _ => {}
+            }
+        }
+        let Some(pose) = self.pose else {
+            return Command::Stop;
+        };
+        if self.plan.is_none() && !self.plan_failed {
+            self.make_plan(&pose);
+        }
+        for i in 0..self.children.len() {
+            self.supervise(i);
+        }
+        if !self.waiting.is_empty() {
+            self.release_waiting();
+        }
+        self.advance();
+        let Some(pilot) = self.pilot.as_mut() else {
+            return Command::Stop;
+        };
+        let cmd = pilot.step(
+            now_ns,
+            &[SensorMsg::TruthPose(PoseStamped {
+                stamp_ns: now_ns,
+                pose,
+            })],
+        );
+        if pilot.status().done() {
+            self.pilot = None;
+            return Command::Stop;
+        }
+        cmd
+    }
+
+    fn status(&self) -> StackStatus {
+        StackStatus {
+            goals_reached: self.report.steps_done,
+            goals_total: self.report.steps_total,
+            goals_skipped: 0,
+        }
+    }
+
+    fn outbox(&mut self) -> Vec<Outgoing> {
+        std::mem::take(&mut self.outbox)
+    }
+
+    fn wants_images(&self) -> bool {
+        // The tracker does the parent's seeing; no stored panoramas.
+        false
+    }
+
+    fn mission_over(&self) -> bool {
+        self.report.finished_ns.is_some()
+    }
+
+    fn team_report(&self) -> Option<TeamReport> {
+        let mut r = self.report.clone();
+        r.tracked_paths = self
+            .children
+            .iter()
+            .map(|c| (c.name.clone(), c.path.clone()))
+            .collect();
+        Some(r)
+    }
+}

@@ -1,0 +1,557 @@
+//! The radio protocol between a coverage parent and its children, and the child's software
+//! (seed 002, Section V.B).
+//!
+//! The children have no localization: a camera, a compass and wheel encoders. The parent
+//! tracks them and sends **orders**; a child
+//! * **drives**: rotates by compass towards a heading, then drives straight at the mission's
+//!   speed (0.15 m/s in the seed), holding the heading by compass, for a distance measured by
+//!   its encoders, and stops (also when its encoders stall: less than 1 cm in two seconds);
+//! * **grabs**: rotates by compass to the direction of mapping, lets the robot settle, takes
+//!   the next camera image and sends it with the vertex id;
+//! * **stops**.
+//!
+//! The radio may lose messages, so every order carries a sequence number; the child
+//! acknowledges each order (again when it receives it again), reports a finished drive with
+//! `Done` and a grab with `Grabbed` (again whenever the order is repeated), and ignores orders
+//! older than the one it is executing. The parent repeats an order until it hears back.
+
+use hetsim_msgs::{
+    wrap_angle, Command, Image, Mission, Outgoing, RobotStack, SensorMsg, StackStatus,
+};
+use serde::{Deserialize, Serialize};
+
+/// The radio topic of the team's messages.
+pub const TOPIC: &str = "team";
+
+/// What a parent orders a child to do.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub enum Order {
+    /// Stop now and hold.
+    Stop,
+    /// Rotate to `heading_rad` by compass, then drive straight for `distance_m` and stop.
+    Drive {
+        /// Compass heading, radians counter-clockwise from east.
+        heading_rad: f64,
+        /// Distance by the encoders, metres.
+        distance_m: f64,
+    },
+    /// Rotate to `heading_rad` by compass, settle, grab an image and send it.
+    Grab {
+        /// The direction of mapping, radians counter-clockwise from east.
+        heading_rad: f64,
+        /// The vertex being imaged, `(col, row)`.
+        vertex: (usize, usize),
+    },
+}
+
+/// A message of the team protocol.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub enum TeamMsg {
+    /// Parent to child: an order.
+    Order {
+        /// Sequence number, increasing per child.
+        seq: u32,
+        /// The order.
+        order: Order,
+    },
+    /// Child to parent: order `seq` received.
+    Ack {
+        /// The order's sequence number.
+        seq: u32,
+    },
+    /// Child to parent: the drive of order `seq` is finished.
+    Done {
+        /// The order's sequence number.
+        seq: u32,
+        /// Distance driven by the encoders, metres.
+        driven_m: f64,
+        /// The compass heading while driving (mean of the readings), radians.
+        heading_rad: f64,
+    },
+    /// Child to parent: the image of grab order `seq`.
+    Grabbed {
+        /// The order's sequence number.
+        seq: u32,
+        /// The vertex, `(col, row)`.
+        vertex: (usize, usize),
+        /// Mean compass heading while the image was taken, radians.
+        heading_rad: f64,
+        /// The image.
+        image: Image,
+    },
+}
+
+impl TeamMsg {
+    /// The radio message carrying this to `to`.
+    pub fn to(&self, to: &str) -> Outgoing {
+        Outgoing {
+            to: to.to_string(),
+            topic: TOPIC.to_string(),
+            payload: postcard::to_stdvec(self).expect("plain data always encodes"),
+        }
+    }
+
+    /// Decodes a delivered team message, if it is one.
+    pub fn decode(msg: &hetsim_msgs::Delivered) -> Option<Self> {
+        (msg.topic == TOPIC)
+            .then(|| postcard::from_bytes(&msg.payload).ok())
+            .flatten()
+    }
+}
+
+/// Parameters of a child.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ChildParams {
+    /// Wheel track, metres.
+    pub track_m: f64,
+    /// Driving speed, metres per second.
+    pub speed_mps: f64,
+    /// Largest turn rate, radians per second.
+    pub max_turn_radps: f64,
+    /// A heading within this of the target ends a rotation, radians.
+    pub aim_tolerance_rad: f64,
+    /// Time to stand still after rotating before an image is taken, nanoseconds.
+    pub settle_ns: u64,
+}
+
+#[derive(Clone, Debug, PartialEq)]
+enum Phase {
+    Idle,
+    Turning {
+        target: f64,
+        then_drive: Option<f64>,
+        grab: Option<(usize, usize)>,
+    },
+    Driving {
+        /// The compass heading held while driving.
+        target: f64,
+        remaining_m: f64,
+        driven_m: f64,
+        headings: (f64, f64),
+        /// Encoder distance and time at the last check for a stall.
+        progress: (f64, u64),
+    },
+    Settling {
+        since_ns: u64,
+        vertex: (usize, usize),
+        headings: (f64, f64),
+    },
+}
+
+/// A child robot's software: obeys the parent's orders.
+pub struct ChildStack {
+    params: ChildParams,
+    parent: String,
+    seq: Option<u32>,
+    phase: Phase,
+    heading: Option<f64>,
+    /// A reading arrived since the turn command was last computed.
+    fresh_heading: bool,
+    /// The reply to the current order once it is finished (repeated on request).
+    reply: Option<TeamMsg>,
+    outbox: Vec<Outgoing>,
+    status: StackStatus,
+}
+
+impl ChildStack {
+    /// A child obeying `mission` (it must be [`Mission::Teleoperated`]; any other mission
+    /// leaves the child idle, with no parent to answer).
+    pub fn new(params: ChildParams, mission: &Mission) -> Self {
+        let parent = match mission {
+            Mission::Teleoperated { parent } => parent.clone(),
+            _ => String::new(),
+        };
+        Self {
+            params,
+            parent,
+            seq: None,
+            phase: Phase::Idle,
+            heading: None,
+            fresh_heading: false,
+            reply: None,
+            outbox: Vec::new(),
+            status: StackStatus::default(),
+        }
+    }
+
+    fn send(&mut self, msg: TeamMsg) {
+        if !self.parent.is_empty() {
+            self.outbox.push(msg.to(&self.parent));
+        }
+    }
+
+    fn obey(&mut self, seq: u32, order: Order) {
+        match self.seq {
+            Some(current) if seq < current => return,
+            Some(current) if seq == current => {
+                // The parent did not hear us: say it again.
+                self.send(TeamMsg::Ack { seq });
+                if let Some(reply) = self.reply.clone() {
+                    self.send(reply);
+                }
+                return;
+            }
+            _ => {}
+        }
+        self.seq = Some(seq);
+        self.reply = None;
+        self.send(TeamMsg::Ack { seq });
+        self.phase = match order {
+            Order::Stop => Phase::Idle,
+            Order::Drive {
+                heading_rad,
+                distance_m,
+            } => Phase::Turning {
+                target: heading_rad,
+                then_drive: Some(distance_m),
+                grab: None,
+            },
+            Order::Grab {
+                heading_rad,
+                vertex,
+            } => Phase::Turning {
+                target: heading_rad,
+                then_drive: None,
+                grab: Some(vertex),
+            },
+        };
+    }
+
+    fn wheels(&self, forward: f64, turn: f64) -> Command {
+        let half = self.params.track_m / 2.0;
+        Command::Wheels {
+            left_mps: forward - turn * half,
+            right_mps: forward + turn * half,
+        }
+    }
+
+    fn finish(&mut self, reply: TeamMsg) {
+        self.reply = Some(reply.clone());
+        self.send(reply);
+        self.phase = Phase::Idle;
+        self.status.goals_reached += 1;
+    }
+}
+
+/// Adds a heading to a running (sum of cos, sum of sin).
+fn accumulate(sum: (f64, f64), heading: f64) -> (f64, f64) {
+    (sum.0 + heading.cos(), sum.1 + heading.sin())
+}
+
+impl RobotStack for ChildStack {
+    fn step(&mut self, now_ns: u64, inbox: &[SensorMsg]) -> Command {
+        let mut image: Option<&Image> = None;
+        let mut driven = 0.0;
+        for msg in inbox {
+            match msg {
+                SensorMsg::Compass(c) => {
+                    self.heading = Some(c.heading_rad);
+                    self.fresh_heading = true;
+                    match &mut self.phase {
+                        Phase::Driving { headings, .. } | Phase::Settling { headings, .. } => {
+                            *headings = accumulate(*headings, c.heading_rad);
+                        }
+                        _ => {}
+                    }
+                }
+                SensorMsg::WheelOdometry(o) => driven += (o.left_m + o.right_m) / 2.0,
+                SensorMsg::Comms(d) if d.from == self.parent => {
+                    if let Some(TeamMsg::Order { seq, order }) = TeamMsg::decode(d) {
+                        self.obey(seq, order);
+                    }
+                }
+                SensorMsg::Image(i) => image = Some(i),
+                _ => {}
+            }
+        }
+        let seq = self.seq.unwrap_or(0);
+        match self.phase.clone() {
+            Phase::Idle => Command::Stop,
+            Phase::Turning {
+                target,
+                then_drive,
+                grab,
+            } => {
+                let Some(heading) = self.heading else {
+                    return Command::Stop;
+                };
+                let error = wrap_angle(target - heading);
+                if error.abs() <= self.params.aim_tolerance_rad && self.fresh_heading {
+                    self.phase = match (then_drive, grab) {
+                        (Some(d), _) => Phase::Driving {
+                            target,
+                            remaining_m: d,
+                            driven_m: 0.0,
+                            headings: (0.0, 0.0),
+                            progress: (0.0, now_ns),
+                        },
+                        (None, Some(vertex)) => Phase::Settling {
+                            since_ns: now_ns,
+                            vertex,
+                            headings: (0.0, 0.0),
+                        },
+                        (None, None) => Phase::Idle,
+                    };
+                    return Command::Stop;
+                }
+                // Turn only as far as a compass period allows, so a noisy reading is not
+                // overshot: proportional, with a floor so that small errors still close.
+                self.fresh_heading = false;
+                let rate = (1.5 * error).abs().clamp(0.25, self.params.max_turn_radps);
+                self.wheels(0.0, rate * error.signum())
+            }
+            Phase::Driving {
+                target,
+                remaining_m,
+                driven_m,
+                headings,
+                mut progress,
+            } => {
+                let remaining = remaining_m - driven;
+                let driven_m = driven_m + driven;
+                // Stalled (against an obstacle, the wheels held): less than 1 cm in the last
+                // two seconds ends the drive, so that the parent hears how far it got.
+                let stalled = if now_ns >= progress.1 + 2_000_000_000 {
+                    let stuck = driven_m - progress.0 < 0.01;
+                    progress = (driven_m, now_ns);
+                    stuck
+                } else {
+                    false
+                };
+                if remaining <= 0.0 || stalled {
+                    let heading = headings.1.atan2(headings.0);
+                    self.finish(TeamMsg::Done {
+                        seq,
+                        driven_m,
+                        heading_rad: if headings == (0.0, 0.0) {
+                            self.heading.unwrap_or(0.0)
+                        } else {
+                            heading
+                        },
+                    });
+                    return Command::Stop;
+                }
+                self.phase = Phase::Driving {
+                    target,
+                    remaining_m: remaining,
+                    driven_m,
+                    headings,
+                    progress,
+                };
+                // Straight by compass: the wheels' speed errors would curve the path by
+                // several degrees a second.
+                let hold = self
+                    .heading
+                    .map_or(0.0, |h| (1.0 * wrap_angle(target - h)).clamp(-0.3, 0.3));
+                self.wheels(self.params.speed_mps, hold)
+            }
+            Phase::Settling {
+                since_ns,
+                vertex,
+                headings,
+            } => {
+                if let Some(img) = image.filter(|i| i.stamp_ns >= since_ns + self.params.settle_ns)
+                {
+                    let heading = if headings == (0.0, 0.0) {
+                        self.heading.unwrap_or(0.0)
+                    } else {
+                        headings.1.atan2(headings.0)
+                    };
+                    self.finish(TeamMsg::Grabbed {
+                        seq,
+                        vertex,
+                        heading_rad: heading,
+                        image: img.clone(),
+                    });
+                }
+                Command::Stop
+            }
+        }
+    }
+
+    fn status(&self) -> StackStatus {
+        self.status
+    }
+
+    fn outbox(&mut self) -> Vec<Outgoing> {
+        std::mem::take(&mut self.outbox)
+    }
+
+    fn wants_images(&self) -> bool {
+        matches!(self.phase, Phase::Settling { .. })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use hetsim_msgs::{CompassReading, Delivered, WheelOdometry};
+
+    fn child() -> ChildStack {
+        ChildStack::new(
+            ChildParams {
+                track_m: 0.1,
+                speed_mps: 0.15,
+                max_turn_radps: 1.0,
+                aim_tolerance_rad: 0.05,
+                settle_ns: 200_000_000,
+            },
+            &Mission::Teleoperated {
+                parent: "parent".into(),
+            },
+        )
+    }
+
+    fn order(seq: u32, order: Order) -> SensorMsg {
+        let out = TeamMsg::Order { seq, order }.to("child");
+        SensorMsg::Comms(Delivered {
+            from: "parent".into(),
+            topic: out.topic,
+            sent_ns: 0,
+            stamp_ns: 0,
+            payload: out.payload,
+        })
+    }
+
+    fn compass(h: f64) -> SensorMsg {
+        SensorMsg::Compass(CompassReading {
+            stamp_ns: 0,
+            sensor: "compass".into(),
+            heading_rad: h,
+        })
+    }
+
+    fn replies(c: &mut ChildStack) -> Vec<TeamMsg> {
+        c.outbox()
+            .iter()
+            .map(|o| postcard::from_bytes(&o.payload).unwrap())
+            .collect()
+    }
+
+    #[test]
+    fn a_drive_turns_by_compass_then_stops_after_the_encoder_distance() {
+        let mut c = child();
+        let cmd = c.step(
+            0,
+            &[
+                compass(0.0),
+                order(
+                    1,
+                    Order::Drive {
+                        heading_rad: 1.0,
+                        distance_m: 0.3,
+                    },
+                ),
+            ],
+        );
+        assert_eq!(replies(&mut c), vec![TeamMsg::Ack { seq: 1 }]);
+        // Turning left (right wheel faster).
+        let Command::Wheels {
+            left_mps,
+            right_mps,
+        } = cmd
+        else {
+            panic!("{cmd:?}")
+        };
+        assert!(right_mps > 0.0 && left_mps < 0.0);
+        // Aligned: stop once, then drive straight.
+        assert_eq!(c.step(1, &[compass(0.99)]), Command::Stop);
+        let odo = |m: f64| {
+            SensorMsg::WheelOdometry(WheelOdometry {
+                stamp_ns: 0,
+                sensor: "e".into(),
+                left_m: m,
+                right_m: m,
+            })
+        };
+        assert_eq!(
+            c.step(2, &[odo(0.1)]),
+            Command::Wheels {
+                left_mps: 0.15,
+                right_mps: 0.15
+            }
+        );
+        assert_eq!(
+            c.step(3, &[odo(0.15), compass(1.01)]),
+            Command::Wheels {
+                left_mps: 0.15,
+                right_mps: 0.15
+            }
+        );
+        assert_eq!(c.step(4, &[odo(0.06)]), Command::Stop);
+        let r = replies(&mut c);
+        assert!(
+            matches!(r[..], [TeamMsg::Done { seq: 1, driven_m, heading_rad }] if (driven_m - 0.31).abs() < 1e-9 && (heading_rad - 1.01).abs() < 1e-9),
+            "{r:?}"
+        );
+        // The order again (the parent missed the reply): acknowledged and answered again,
+        // not driven again.
+        assert_eq!(
+            c.step(
+                5,
+                &[order(
+                    1,
+                    Order::Drive {
+                        heading_rad: 1.0,
+                        distance_m: 0.3
+                    }
+                )]
+            ),
+            Command::Stop
+        );
+        assert_eq!(replies(&mut c).len(), 2);
+        // An older order is ignored.
+        c.step(
+            6,
+            &[order(
+                0,
+                Order::Drive {
+                    heading_rad: 2.0,
+                    distance_m: 1.0,
+                },
+            )],
+        );
+        assert!(replies(&mut c).is_empty());
+    }
+
+    #[test]
+    fn a_grab_waits_for_an_image_taken_after_settling() {
+        let mut c = child();
+        c.step(
+            0,
+            &[
+                compass(0.02),
+                order(
+                    3,
+                    Order::Grab {
+                        heading_rad: 0.0,
+                        vertex: (4, 2),
+                    },
+                ),
+            ],
+        );
+        assert!(!c.wants_images() || c.phase != Phase::Idle);
+        c.step(10, &[compass(0.01)]);
+        assert!(c.wants_images());
+        let img = |stamp_ns| {
+            SensorMsg::Image(Image {
+                stamp_ns,
+                sensor: "camera".into(),
+                width: 1,
+                height: 1,
+                rgb: vec![1, 2, 3],
+            })
+        };
+        c.step(100_000_000, &[img(100_000_000)]);
+        assert!(replies(&mut c)
+            .iter()
+            .all(|m| matches!(m, TeamMsg::Ack { .. })));
+        c.step(500_000_000, &[img(500_000_000)]);
+        let r = replies(&mut c);
+        assert!(
+            matches!(&r[..], [TeamMsg::Grabbed { seq: 3, vertex: (4, 2), image, .. }] if image.stamp_ns == 500_000_000),
+            "{r:?}"
+        );
+        assert!(!c.wants_images());
+    }
+}
