@@ -430,3 +430,59 @@ fn override_into_a_missing_table() {
         "existing field",
     );
 }
+
+#[test]
+fn coverage_child_without_a_parent() {
+    let text = SCENARIO.replace(
+        "mission = { kind = \"grid_goals\", goals = [[1, 1]] }",
+        "mission = { kind = \"coverage_child\" }",
+    );
+    let (_, e, _d) = load(&text, None);
+    assert_names(
+        &e,
+        "broken.toml",
+        line_of(&text, "coverage_child"),
+        "robots[0].mission.kind",
+        "coverage_child",
+        "exactly one robot with mission coverage_parent",
+    );
+}
+
+#[test]
+fn coverage_parent_without_a_coverage_table() {
+    let text = SCENARIO
+        .replace("model = \"ctbot\"", "model = \"parent\"")
+        .replace(
+            "mission = { kind = \"grid_goals\", goals = [[1, 1]] }",
+            "mission = { kind = \"coverage_parent\" }",
+        );
+    let (_, e, _d) = load(&text, None);
+    assert_names(
+        &e,
+        "broken.toml",
+        line_of(&text, "coverage_parent"),
+        "robots[0].mission.kind",
+        "coverage_parent",
+        "a [coverage] table",
+    );
+}
+
+#[test]
+fn coverage_child_without_a_compass() {
+    let robot = ctbot()
+        .replace("kind = \"compass\"", "kind = \"gps\"")
+        .replace("sigma_deg = 3.5", "sigma_m = 2.0");
+    let text = SCENARIO.replace(
+        "mission = { kind = \"grid_goals\", goals = [[1, 1]] }",
+        "mission = { kind = \"coverage_child\" }",
+    );
+    let (_, e, _d) = load(&text, Some(&robot));
+    assert_names(
+        &e,
+        "broken.toml",
+        line_of(&text, "coverage_child"),
+        "robots[0].mission.kind",
+        "coverage_child",
+        "a camera, a compass and wheel_odometry",
+    );
+}

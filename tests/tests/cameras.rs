@@ -11,7 +11,7 @@ fn rendered_runs_deliver_images_at_their_rates_and_repeat_bit_for_bit() {
         let o = hetsim(
             &[
                 "run",
-                "scenarios/lab.toml",
+                "scenarios/indoor-grid-20.toml",
                 "--duration",
                 "2",
                 "--out",
@@ -39,6 +39,34 @@ fn rendered_runs_deliver_images_at_their_rates_and_repeat_bit_for_bit() {
         digests[0], digests[1],
         "same seed, same adapter: same images, same digest"
     );
+}
+
+#[test]
+fn cameras_render_only_for_robots_that_want_images() {
+    // In the lab's coverage mission the children want an image only while waiting for a
+    // grab, and the parent (which tracks with its tracker) never: nothing in the first 2 s.
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("lab");
+    printed_digest(&hetsim(
+        &[
+            "run",
+            "scenarios/lab.toml",
+            "--duration",
+            "2",
+            "--out",
+            out.to_str().unwrap(),
+        ],
+        &[],
+    ));
+    let metrics: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("metrics.json")).unwrap()).unwrap();
+    let m = &metrics["messages"];
+    assert!(
+        m["child1/camera"].is_null() && m["parent/omni"].is_null(),
+        "{m}"
+    );
+    // 23 Hz on a 10 ms tick: every 4th tick, 25 Hz.
+    assert_eq!(m["parent/tracker"], 50, "the tracker runs: {m}");
 }
 
 #[test]

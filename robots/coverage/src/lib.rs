@@ -18,6 +18,7 @@
 //! the repository README ("Coverage planning decisions").
 
 pub mod execute;
+pub mod localize;
 pub mod map;
 pub mod parent;
 pub mod roadmap;

@@ -29,8 +29,8 @@
 //!   [`crate::team`]).
 //! * **Lost track.** A child that should be in view but has not been tracked for
 //!   `lost_after_ns` while driving is stopped at once (a tracking loss); it is driven on when
-//!   the tracker finds it again. After `give_up_ns` without a track its step is abandoned
-//!   and reported, and the mission goes on with the position it was sent to.
+//!   the tracker finds it again, or open loop from its last track after `reacquire_ns` (the
+//!   map's line of sight and the tracker's can disagree near obstacle corners).
 //! * **Radio.** Orders are repeated every `resend_ns` until acknowledged, and a drive or grab
 //!   whose reply does not come is ordered again; see [`crate::team`].
 
@@ -57,8 +57,8 @@ pub struct ParentParams {
     pub track_timeout_ns: u64,
     /// A child in view untracked for this long while driving is stopped, nanoseconds.
     pub lost_after_ns: u64,
-    /// A lost child is given up after this long, nanoseconds.
-    pub give_up_ns: u64,
+    /// A lost child not found again within this long is driven on open loop, nanoseconds.
+    pub reacquire_ns: u64,
     /// Unacknowledged orders are repeated this often, nanoseconds.
     pub resend_ns: u64,
 }
@@ -80,7 +80,7 @@ impl ParentParams {
             reaim_m: 0.2,
             track_timeout_ns: 300_000_000,
             lost_after_ns: 500_000_000,
-            give_up_ns: 30_000_000_000,
+            reacquire_ns: 3_000_000_000,
             resend_ns: 500_000_000,
         }
     }
@@ -97,6 +97,8 @@ enum Task {
         due_ns: u64,
         /// Where the child was believed to be when the drive was ordered.
         from: [f64; 2],
+        /// Driven open loop after a tracking loss: no loss detection for this move.
+        blind: bool,
     },
     Lost {
         goal: [f64; 2],
@@ -134,6 +136,7 @@ pub struct ParentStack {
     plan_failed: bool,
     pose: Option<Pose>,
     step_index: usize,
+    moves_started: bool,
     grabbing: bool,
     pilot: Option<GroundPilot>,
     /// Moves of the current timestep not started yet: (robot, target, the robot leaving the
@@ -218,6 +221,7 @@ impl ParentStack {
             plan_failed: false,
             pose: None,
             step_index: 0,
+            moves_started: false,
             grabbing: false,
             pilot: None,
             waiting: Vec::new(),
@@ -340,8 +344,15 @@ impl ParentStack {
                     }
                     return;
                 }
-                if dist(self.children[i].estimate, goal) <= self.params.arrive_m || corrections >= 3
-                {
+                let off = dist(self.children[i].estimate, goal);
+                if off <= self.params.arrive_m || corrections >= 3 {
+                    if off > 2.0 * self.params.arrive_m {
+                        // Blocked (by a robot out of place, or furniture): go on from here.
+                        if let Some(v) = self.vertex_at(goal) {
+                            let cell = self.map.cell(v);
+                            self.report.abandoned.push(cell);
+                        }
+                    }
                     self.children[i].task = Task::Idle;
                     self.children[i].order = None;
                 } else {
@@ -392,6 +403,7 @@ impl ParentStack {
             corrections,
             due_ns,
             from,
+            blind: false,
         };
     }
 
@@ -414,9 +426,11 @@ impl ParentStack {
                 reaimed,
                 corrections,
                 due_ns,
+                blind,
                 ..
             } => {
                 if !tracked
+                    && !blind
                     && self.expected_in_view(i)
                     && self.children[i]
                         .last_fix_ns
@@ -443,6 +457,7 @@ impl ParentStack {
                         corrections,
                         due_ns,
                         from,
+                        blind,
                     };
                     return;
                 }
@@ -468,14 +483,13 @@ impl ParentStack {
             } => {
                 if tracked {
                     self.start_move(i, goal, corrections);
-                } else if now.saturating_sub(since_ns) > self.params.give_up_ns {
-                    if let Some(v) = self.vertex_at(goal) {
-                        let cell = self.map.cell(v);
-                        self.report.abandoned.push(cell);
+                } else if now.saturating_sub(since_ns) > self.params.reacquire_ns {
+                    // Not found again: the child stopped within a few centimetres of its
+                    // last track; drive it on open loop from there.
+                    self.start_move(i, goal, corrections);
+                    if let Task::Move { blind, .. } = &mut self.children[i].task {
+                        *blind = true;
                     }
-                    self.children[i].estimate = goal;
-                    self.children[i].task = Task::Idle;
-                    self.children[i].order = None;
                 }
             }
             Task::Grab { sent_ns, .. } => {
@@ -509,13 +523,36 @@ impl ParentStack {
             return;
         };
         let total = plan.frames.len();
+        // Each timestep: its moves, then (all robots arrived) its grabs, then (all images
+        // in) the next timestep.
         while self.idle() && self.report.finished_ns.is_none() {
+            if self.step_index >= total {
+                self.report.finished_ns = Some(self.now_ns);
+                return;
+            }
             let plan = self.plan.as_ref().expect("planned");
-            if !self.grabbing && self.step_index < total {
-                // Grabs of the timestep whose moves just finished.
-                let frame = &plan.frames[self.step_index];
-                let grabs = frame.grabs.clone();
+            if !self.moves_started {
+                self.moves_started = true;
+                let previous = if self.step_index == 0 {
+                    plan.start.clone()
+                } else {
+                    plan.frames[self.step_index - 1].positions.clone()
+                };
+                let next = plan.frames[self.step_index].positions.clone();
+                // A robot moving onto a vertex another robot leaves in the same timestep (a
+                // train) waits until that robot has arrived at its own target.
+                for r in 0..next.len() {
+                    if next[r] == previous[r] {
+                        continue;
+                    }
+                    let blocker = (0..next.len())
+                        .find(|&q| q != r && previous[q] == next[r] && next[q] != previous[q]);
+                    self.waiting.push((r, next[r], blocker));
+                }
+                self.release_waiting();
+            } else if !self.grabbing {
                 self.grabbing = true;
+                let grabs = plan.frames[self.step_index].grabs.clone();
                 let heading = {
                     let (x, y) = self.coverage.direction.unit();
                     y.atan2(x)
@@ -535,35 +572,12 @@ impl ParentStack {
                         fixes: Vec::new(),
                     };
                 }
-                continue;
-            }
-            // The next timestep's moves.
-            if self.grabbing {
+            } else {
                 self.step_index += 1;
                 self.report.steps_done = self.step_index;
+                self.moves_started = false;
+                self.grabbing = false;
             }
-            self.grabbing = false;
-            if self.step_index >= total {
-                self.report.finished_ns = Some(self.now_ns);
-                return;
-            }
-            let previous = if self.step_index == 0 {
-                plan.start.clone()
-            } else {
-                plan.frames[self.step_index - 1].positions.clone()
-            };
-            let next = plan.frames[self.step_index].positions.clone();
-            // A robot moving onto a vertex another robot leaves in the same timestep (a
-            // train) waits until that robot has arrived at its own target.
-            for r in 0..next.len() {
-                if next[r] == previous[r] {
-                    continue;
-                }
-                let blocker = (0..next.len())
-                    .find(|&q| q != r && previous[q] == next[r] && next[q] != previous[q]);
-                self.waiting.push((r, next[r], blocker));
-            }
-            self.release_waiting();
         }
     }
 

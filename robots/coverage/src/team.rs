@@ -464,20 +464,24 @@ mod tests {
                 right_m: m,
             })
         };
-        assert_eq!(
-            c.step(2, &[odo(0.1)]),
-            Command::Wheels {
-                left_mps: 0.15,
-                right_mps: 0.15
-            }
-        );
-        assert_eq!(
-            c.step(3, &[odo(0.15), compass(1.01)]),
-            Command::Wheels {
-                left_mps: 0.15,
-                right_mps: 0.15
-            }
-        );
+        // Straight on, holding the heading by compass: 0.01 rad to the right of the target
+        // turns it left a little (right wheel faster), 0.01 rad to the left turns it right.
+        let Command::Wheels {
+            left_mps,
+            right_mps,
+        } = c.step(2, &[odo(0.1)])
+        else {
+            panic!()
+        };
+        assert!((left_mps + right_mps - 0.3).abs() < 1e-12 && left_mps < right_mps);
+        let Command::Wheels {
+            left_mps,
+            right_mps,
+        } = c.step(3, &[odo(0.15), compass(1.01)])
+        else {
+            panic!()
+        };
+        assert!((left_mps + right_mps - 0.3).abs() < 1e-12 && left_mps > right_mps);
         assert_eq!(c.step(4, &[odo(0.06)]), Command::Stop);
         let r = replies(&mut c);
         assert!(

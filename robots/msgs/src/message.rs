@@ -141,7 +141,8 @@ pub struct TeamReport {
     pub parent_vertices: Vec<(usize, usize)>,
     /// Vertices the plan could not image (uncoverable or unreached), `(col, row)`.
     pub unplanned: Vec<(usize, usize)>,
-    /// Vertices the plan imaged but the execution gave up on, `(col, row)`.
+    /// Goals a tracked child could not be brought within twice the arrival distance of after
+    /// three corrections (blocked), `(col, row)`; the mission goes on from where it is.
     pub abandoned: Vec<(usize, usize)>,
     /// The image database.
     pub database: Vec<DatabaseImage>,

@@ -1,6 +1,8 @@
 //! Image features and stereo visual odometry for the SLAM stack of seed
 //! `000_955784a9d1cf66bf` (Section V, "Involved processes").
 //!
+//! * [`appearance`]: global image features (WGOH, 15 x 11 thumbnails) for the children's
+//!   appearance-based localization (seed 002);
 //! * [`harris`]: Harris interest points, and the seed's heuristic of a regular 3 x 3
 //!   partition of the image with at least two tracked landmarks per region;
 //! * [`matching`]: zero-mean normalized cross-correlation (ZNCC) of patches, searched inside a
@@ -14,6 +16,7 @@
 //! Everything works on [`Gray`] images in the optical frame convention (x right, y down,
 //! z forward; pixel centres at integer coordinates).
 
+pub mod appearance;
 pub mod harris;
 pub mod image;
 pub mod matching;

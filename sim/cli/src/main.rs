@@ -76,6 +76,32 @@ enum Cmd {
         #[arg(long)]
         adapter: Option<String>,
     },
+    /// Localization from coverage-mission image databases (seed 002, Section V.B): runs the
+    /// scenario's mission for seeds 1..=N (reusing runs already in the output folder),
+    /// cross-validates their databases (WGOH and pixelwise), and localizes a child driving
+    /// new random paths with the particle filter. Writes localization.json and .md.
+    Localize {
+        /// Scenario with a coverage mission (e.g. scenarios/lab.toml).
+        scenario: PathBuf,
+        /// Mapping runs (seeds 1..=N).
+        #[arg(long, default_value_t = 10)]
+        seeds: u64,
+        /// Particle filter paths.
+        #[arg(long, default_value_t = 5)]
+        paths: usize,
+        /// Grid moves per path.
+        #[arg(long, default_value_t = 20)]
+        steps: usize,
+        /// Output folder (default: results/runs/localize-<name>).
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Renderer backend: vulkan, gl or any (default: HETSIM_BACKEND, else any).
+        #[arg(long)]
+        backend: Option<String>,
+        /// Use the adapter whose name contains this (default: HETSIM_ADAPTER, else any).
+        #[arg(long)]
+        adapter: Option<String>,
+    },
     /// Check scenario and robot files without running anything.
     Validate {
         /// Scenario files or robot files (robots/models/*.toml).
@@ -220,6 +246,22 @@ fn real_main() -> Result<()> {
                 Some((Some((from, to)), list)),
             )?;
         }
+        Cmd::Localize {
+            scenario,
+            seeds,
+            paths,
+            steps,
+            out,
+            backend,
+            adapter,
+        } => localize(
+            &scenario,
+            seeds,
+            paths,
+            steps,
+            out,
+            hetsim_render::RenderOptions { backend, adapter },
+        )?,
         Cmd::Validate { files } => {
             anyhow::ensure!(
                 !files.is_empty(),
@@ -727,6 +769,83 @@ fn execute(
     let files = files.context("writing results")?;
     println!("results: {}", files.dir.display());
     println!("digest: {}", files.digest);
+    Ok(())
+}
+
+/// `hetsim localize`: mapping runs, cross-validation, particle filter paths.
+fn localize(
+    scenario: &std::path::Path,
+    seeds: u64,
+    paths: usize,
+    steps: usize,
+    out: Option<PathBuf>,
+    render: hetsim_render::RenderOptions,
+) -> Result<()> {
+    use hetsim_engine::localize::{cross_validate, load_database, particle_filter_path};
+    anyhow::ensure!(
+        seeds >= 2,
+        "--seeds {seeds}: cross-validation needs at least 2 runs"
+    );
+    let base = load_scenario(scenario, &LoadOptions::default())?;
+    anyhow::ensure!(
+        base.robots
+            .iter()
+            .any(|r| matches!(r.spec.mission, hetsim_scene::MissionSpec::CoverageParent)),
+        "{}: no robot with mission coverage_parent; localization needs a coverage mission",
+        scenario.display()
+    );
+    let out = out.unwrap_or_else(|| {
+        PathBuf::from("results/runs").join(format!("localize-{}", base.file.name))
+    });
+    let mut databases = Vec::new();
+    let mut missions = Vec::new();
+    for seed in 1..=seeds {
+        let dir = out.join(format!("runs/seed-{seed}"));
+        if dir.join("manifest.json").is_file() {
+            eprintln!("seed {seed}: reusing {}", dir.display());
+        } else {
+            eprintln!("seed {seed}: running the mission");
+            let loaded = load_scenario(
+                scenario,
+                &LoadOptions {
+                    seed: Some(seed),
+                    duration_secs: None,
+                },
+            )?;
+            execute(&loaded, Some(&dir), None, Some(render.clone()), None)?;
+        }
+        let metrics: serde_json::Value = serde_json::from_slice(
+            &std::fs::read(dir.join("metrics.json"))
+                .with_context(|| format!("{}", dir.display()))?,
+        )?;
+        missions.push(metrics["team"].clone());
+        databases.push(load_database(&dir).map_err(anyhow::Error::msg)?);
+    }
+    eprintln!("cross-validating {} databases", databases.len());
+    let cross = cross_validate(&databases);
+    let mut pf: Vec<hetsim_engine::localize::PathRun> = Vec::new();
+    for p in 0..paths {
+        eprintln!("particle filter path {}/{paths}", p + 1);
+        let db = &databases[p % databases.len()];
+        pf.extend(
+            particle_filter_path(&base, db, steps, 1000 + p as u64, &render)
+                .map_err(anyhow::Error::msg)?,
+        );
+    }
+    let summary = hetsim_engine::localize::summarize(&missions, &cross, &pf);
+    let json = serde_json::to_vec_pretty(&summary)?;
+    let md = hetsim_engine::localize::markdown(&summary);
+    for (name, bytes) in [
+        ("localization.json", json),
+        ("localization.md", md.clone().into_bytes()),
+    ] {
+        let tmp = out.join(format!(".{name}.partial"));
+        std::fs::write(&tmp, bytes).with_context(|| tmp.display().to_string())?;
+        std::fs::rename(&tmp, out.join(name))
+            .with_context(|| out.join(name).display().to_string())?;
+    }
+    println!("{md}");
+    println!("results: {}", out.display());
     Ok(())
 }
 

@@ -14,6 +14,7 @@ pub mod cameras;
 pub mod comms;
 pub mod coverage;
 pub mod frames;
+pub mod localize;
 mod output;
 pub mod plot;
 pub mod record;

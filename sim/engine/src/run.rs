@@ -139,6 +139,9 @@ pub enum RunError {
     /// Frames could not be written.
     #[error("writing frames: {0}")]
     Frames(String),
+    /// The particle filter's path could not be rendered.
+    #[error("localizing on the mission's database: {0}")]
+    Localize(String),
 }
 
 /// Where messages go: the robot's inbox, the digest, the recording and the counts.
@@ -347,6 +350,17 @@ fn run_on_worker(
     metrics.team = team
         .as_ref()
         .map(|t| crate::team::TeamMetrics::compute(scenario, &physics, t, &truth, &metrics.robots));
+    // The children then localize from the images: a particle filter on a new path.
+    if let (Some(t), Some(m), Some(r)) = (&team, metrics.team.as_mut(), &render) {
+        let named: Vec<(String, Vec<(u64, Pose)>)> =
+            names.iter().cloned().zip(truth.iter().cloned()).collect();
+        let db = crate::localize::database_of(&t.report, &named);
+        if m.finished && !db.is_empty() {
+            m.localization =
+                crate::localize::particle_filter_path(scenario, &db, 20, scenario.seed, r)
+                    .map_err(RunError::Localize)?;
+        }
+    }
     let mut estimates = Vec::new();
     for (i, stack) in stacks.iter().enumerate() {
         for (kind, poses) in stack.trajectories() {

@@ -59,7 +59,7 @@ pub struct TeamMetrics {
     pub imaged_fraction: f64,
     /// Vertices the plan could not image (uncoverable, unreached or unreachable).
     pub unplanned: Vec<(usize, usize)>,
-    /// Vertices whose step the parent gave up on (a child lost for too long).
+    /// Goals a child could not reach (blocked), `(col, row)`.
     pub abandoned: Vec<(usize, usize)>,
     /// Whether the parent finished its plan within the run.
     pub finished: bool,
@@ -87,13 +87,17 @@ pub struct TeamMetrics {
     /// Database images with another robot in the child camera's view within r_los, where
     /// the plan keeps robots out of the images (should be zero).
     pub images_with_robot_in_view: usize,
+    /// The particle filter on a new path through the room against this run's database
+    /// (20 moves, images rendered with the child's camera; see `hetsim localize`), per
+    /// feature. Empty without rendering.
+    pub localization: Vec<crate::localize::PathRun>,
     /// Database images with another robot in view farther than r_los (the seed's planner
     /// does not consider robots beyond r_los; a 1.5 m parent is visible across a room).
     pub images_with_distant_robot_in_view: usize,
 }
 
 /// The pose in a ground-truth track nearest a stamp.
-fn truth_at(track: &[(u64, Pose)], stamp_ns: u64) -> Pose {
+pub(crate) fn truth_at(track: &[(u64, Pose)], stamp_ns: u64) -> Pose {
     let i = track.partition_point(|(t, _)| *t < stamp_ns);
     let candidates = [i.saturating_sub(1), i.min(track.len() - 1)];
     let best = candidates
@@ -258,6 +262,7 @@ impl TeamMetrics {
             resent_orders: r.resent_orders,
             images_with_robot_in_view: in_view,
             images_with_distant_robot_in_view: distant,
+            localization: Vec::new(),
         }
     }
 }

@@ -1,0 +1,513 @@
+//! Localization from coverage-mission image databases (seed 002, Section V.B): the
+//! cross-validation of the paper over several mapping runs, and a particle filter that
+//! localizes a child driving a new path.
+
+use crate::team::MeanStd;
+use hetsim_core::{SimRng, Streams};
+use hetsim_coverage::localize::{ParticleFilter, PfParams, Place};
+use hetsim_msgs::pose_from_xyz_rpy;
+use hetsim_render::{CameraView, RenderOptions, Renderer};
+use hetsim_scene::{Scenario, Sensor};
+use hetsim_vision::appearance::{best_match, Feature, Features};
+use hetsim_vision::Gray;
+use rand::RngExt;
+use rand_distr::{Distribution, StandardNormal};
+use serde::Serialize;
+use std::path::Path;
+
+/// An image of a database, with its positions and features.
+#[derive(Clone, Debug, PartialEq)]
+pub struct DbImage {
+    /// The vertex `(col, row)`.
+    pub vertex: (usize, usize),
+    /// The database's (the parent's) grab position, metres.
+    pub estimated_xy: [f64; 2],
+    /// The true grab position, metres.
+    pub true_xy: [f64; 2],
+    /// Features of the image.
+    pub features: Features,
+}
+
+/// The database a parent reported, with true grab positions from the run's ground truth.
+pub fn database_of(
+    report: &hetsim_msgs::TeamReport,
+    truth: &[(String, Vec<(u64, hetsim_msgs::Pose)>)],
+) -> Vec<DbImage> {
+    report
+        .database
+        .iter()
+        .filter_map(|d| {
+            let track = &truth.iter().find(|(n, _)| *n == d.child)?.1;
+            let p = crate::team::truth_at(track, d.image.stamp_ns)
+                .translation
+                .vector;
+            let gray = Gray::from_rgb(
+                d.image.width as usize,
+                d.image.height as usize,
+                &d.image.rgb,
+            );
+            Some(DbImage {
+                vertex: d.vertex,
+                estimated_xy: d.estimated_xy,
+                true_xy: [p.x, p.y],
+                features: Features::of(&gray),
+            })
+        })
+        .collect()
+}
+
+/// Reads `coverage/database.json` and its images from a run's results directory.
+pub fn load_database(run: &Path) -> Result<Vec<DbImage>, String> {
+    let dir = run.join("coverage");
+    let path = dir.join("database.json");
+    let text = std::fs::read_to_string(&path).map_err(|e| {
+        format!(
+            "{}: {e} (not the results of a coverage mission?)",
+            path.display()
+        )
+    })?;
+    let json: serde_json::Value =
+        serde_json::from_str(&text).map_err(|e| format!("{}: {e}", path.display()))?;
+    let images = json["images"]
+        .as_array()
+        .ok_or_else(|| format!("{}: no \"images\" array", path.display()))?;
+    images
+        .iter()
+        .enumerate()
+        .map(|(k, entry)| {
+            let field = |name: &str| {
+                let v = &entry[name];
+                match (v[0].as_f64(), v[1].as_f64()) {
+                    (Some(a), Some(b)) => Ok([a, b]),
+                    _ => Err(format!(
+                        "{}: images[{k}].{name} is {v}, expected [x, y]",
+                        path.display()
+                    )),
+                }
+            };
+            let vertex = field("vertex")?;
+            let file = entry["image"].as_str().ok_or_else(|| {
+                format!("{}: images[{k}].image is not a file name", path.display())
+            })?;
+            let png = dir.join(file);
+            let img = image::open(&png)
+                .map_err(|e| format!("{}: {e}", png.display()))?
+                .to_rgb8();
+            let gray = Gray::from_rgb(img.width() as usize, img.height() as usize, img.as_raw());
+            Ok(DbImage {
+                vertex: (vertex[0] as usize, vertex[1] as usize),
+                estimated_xy: field("estimated_xy_m")?,
+                true_xy: field("true_xy_m")?,
+                features: Features::of(&gray),
+            })
+        })
+        .collect()
+}
+
+/// Localization errors of one feature.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct FeatureErrors {
+    /// The feature.
+    pub feature: String,
+    /// Error, metres.
+    pub error_m: MeanStd,
+    /// Median error, metres.
+    pub median_m: f64,
+    /// Fraction of images matched to an image of their own vertex.
+    pub same_vertex: f64,
+}
+
+fn errors_of(feature: Feature, errors: &[f64], same: usize) -> FeatureErrors {
+    let mut sorted = errors.to_vec();
+    sorted.sort_by(f64::total_cmp);
+    FeatureErrors {
+        feature: feature.name().into(),
+        error_m: MeanStd::of(errors),
+        median_m: sorted.get(sorted.len() / 2).copied().unwrap_or(0.0),
+        same_vertex: same as f64 / errors.len().max(1) as f64,
+    }
+}
+
+/// The cross-validation of the seed: every image of every run is matched against the images
+/// of all the other runs; its error is the distance from its true grab position to the
+/// database position of the image it matched.
+pub fn cross_validate(runs: &[Vec<DbImage>]) -> Vec<FeatureErrors> {
+    Feature::ALL
+        .iter()
+        .map(|&feature| {
+            let (mut errors, mut same) = (Vec::new(), 0);
+            for (r, run) in runs.iter().enumerate() {
+                let others: Vec<&DbImage> = runs
+                    .iter()
+                    .enumerate()
+                    .filter(|(k, _)| *k != r)
+                    .flat_map(|(_, x)| x.iter())
+                    .collect();
+                let db: Vec<Features> = others.iter().map(|d| d.features.clone()).collect();
+                for q in run {
+                    let Some(m) = best_match(&q.features, &db, feature) else {
+                        continue;
+                    };
+                    let hit = others[m];
+                    errors.push(
+                        (q.true_xy[0] - hit.estimated_xy[0])
+                            .hypot(q.true_xy[1] - hit.estimated_xy[1]),
+                    );
+                    same += usize::from(hit.vertex == q.vertex);
+                }
+            }
+            errors_of(feature, &errors, same)
+        })
+        .collect()
+}
+
+/// A child's camera on its scenario robot: body-from-mount, intrinsics, pixel noise.
+fn child_camera(
+    scenario: &Scenario,
+) -> Result<(hetsim_msgs::Pose, hetsim_render::Intrinsics, f64), String> {
+    scenario
+        .robots
+        .iter()
+        .filter(|r| matches!(r.spec.mission, hetsim_scene::MissionSpec::CoverageChild))
+        .flat_map(|r| r.model.sensors.iter())
+        .find_map(|s| match s {
+            Sensor::Camera {
+                mount,
+                width_px,
+                height_px,
+                hfov_deg,
+                intrinsics,
+                pixel_noise_sigma,
+                ..
+            } => Some((
+                pose_from_xyz_rpy(mount.xyz_m, mount.rpy_deg.map(f64::to_radians)),
+                crate::cameras::intrinsics_of(
+                    *width_px,
+                    *height_px,
+                    *hfov_deg,
+                    intrinsics.as_ref(),
+                ),
+                *pixel_noise_sigma,
+            )),
+            _ => None,
+        })
+        .ok_or_else(|| {
+            format!(
+                "{}: no coverage_child robot with a camera",
+                scenario.path.display()
+            )
+        })
+}
+
+/// The particle filter's run along a path.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct PathRun {
+    /// The feature.
+    pub feature: String,
+    /// Images taken along the path (one per vertex).
+    pub steps: usize,
+    /// Error of the estimate after each image, metres.
+    pub errors_m: Vec<f64>,
+    /// The first step from which the error stays under 0.5 m, if any.
+    pub converged_at: Option<usize>,
+    /// Error at the end, metres.
+    pub final_error_m: f64,
+}
+
+/// Drives a child along a new seeded random path of `steps` grid moves through the scenario's
+/// room, rendering an image facing the direction of mapping at every vertex (the child's
+/// camera, its pixel noise, a compass error of `compass_sigma_deg` and a position error of
+/// 5 cm), and localizes it with the particle filter against `database`, for each feature.
+pub fn particle_filter_path(
+    scenario: &Scenario,
+    database: &[DbImage],
+    steps: usize,
+    seed: u64,
+    render: &RenderOptions,
+) -> Result<Vec<PathRun>, String> {
+    let grid = scenario
+        .world
+        .grid
+        .as_ref()
+        .ok_or("localization needs an indoor_grid world")?
+        .grid
+        .clone();
+    let (mount, k, noise) = child_camera(scenario)?;
+    let mapping = crate::team::direction_rad(scenario);
+    // The path's own stream of the run's seed: the same seed, the same path and images.
+    let mut rng = Streams::new(seed).stream("localize/path");
+    // The path: a random walk over free vertices of the robots' component, never straight
+    // back.
+    let reachable: Vec<(usize, usize)> = database.iter().map(|d| d.vertex).collect();
+    if reachable.is_empty() {
+        return Err("the database is empty".into());
+    }
+    let mut here = reachable[rng.random_range(0..reachable.len())];
+    let mut path = vec![here];
+    let mut previous = None;
+    for _ in 0..steps {
+        let free: Vec<(usize, usize)> = [(1i64, 0i64), (0, 1), (-1, 0), (0, -1)]
+            .iter()
+            .map(|(dc, dr)| (here.0 as i64 + dc, here.1 as i64 + dr))
+            .filter(|&(c, r)| grid.is_free(c, r))
+            .map(|(c, r)| (c as usize, r as usize))
+            .collect();
+        // Back only out of a dead end.
+        let onward: Vec<(usize, usize)> = free
+            .iter()
+            .copied()
+            .filter(|v| Some(*v) != previous)
+            .collect();
+        let options = if onward.is_empty() { free } else { onward };
+        if options.is_empty() {
+            break;
+        }
+        previous = Some(here);
+        here = options[rng.random_range(0..options.len())];
+        path.push(here);
+    }
+    let compass_sigma = 3.5f64.to_radians();
+    let gauss = |rng: &mut SimRng| -> f64 { StandardNormal.sample(rng) };
+    // True grab poses and the images.
+    let mut renderer = Renderer::new(&scenario.world, render).map_err(|e| e.to_string())?;
+    let mut shots = Vec::new();
+    let mut true_xy = Vec::new();
+    for v in &path {
+        let c = grid.centre_of(v.0, v.1);
+        let xy = [c[0] + 0.05 * gauss(&mut rng), c[1] + 0.05 * gauss(&mut rng)];
+        let yaw = mapping + compass_sigma * gauss(&mut rng);
+        let body = pose_from_xyz_rpy([xy[0], xy[1], 0.0], [0.0, 0.0, yaw]);
+        let view = CameraView::from_mount(k, &(body * mount), [0.01, 100.0]);
+        let frame = renderer.render(&[view]).remove(0);
+        let rgb: Vec<u8> = frame
+            .rgb
+            .iter()
+            .map(|p| {
+                (*p as f64 + noise * gauss(&mut rng))
+                    .round()
+                    .clamp(0.0, 255.0) as u8
+            })
+            .collect();
+        shots.push(Features::of(&Gray::from_rgb(
+            k.width as usize,
+            k.height as usize,
+            &rgb,
+        )));
+        true_xy.push(xy);
+    }
+    // The drives between shots as the child measures them: encoders 2 %, compass.
+    let drives: Vec<(f64, f64)> = true_xy
+        .windows(2)
+        .map(|w| {
+            let (dx, dy) = (w[1][0] - w[0][0], w[1][1] - w[0][1]);
+            let d = dx.hypot(dy) * (1.0 + 0.02 * gauss(&mut rng));
+            (d, dy.atan2(dx) + compass_sigma * gauss(&mut rng))
+        })
+        .collect();
+    let places: Vec<Place> = database
+        .iter()
+        .map(|d| Place {
+            xy: d.estimated_xy,
+            features: d.features.clone(),
+        })
+        .collect();
+    Ok(Feature::ALL
+        .iter()
+        .map(|&feature| {
+            let mut pf = ParticleFilter::new(
+                PfParams {
+                    feature,
+                    ..PfParams::default()
+                },
+                grid.clone(),
+                seed,
+            );
+            let mut errors = Vec::new();
+            for (i, shot) in shots.iter().enumerate() {
+                if i > 0 {
+                    let (d, h) = drives[i - 1];
+                    pf.predict(d, h);
+                }
+                pf.update(shot, &places);
+                let e = pf.estimate();
+                errors.push((e[0] - true_xy[i][0]).hypot(e[1] - true_xy[i][1]));
+            }
+            let converged_at = (0..errors.len()).find(|&i| errors[i..].iter().all(|e| *e < 0.5));
+            PathRun {
+                feature: feature.name().into(),
+                steps: errors.len(),
+                final_error_m: *errors.last().unwrap_or(&f64::NAN),
+                errors_m: errors,
+                converged_at,
+            }
+        })
+        .collect())
+}
+
+/// Mission figures over several runs, localization by cross-validation and along paths.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Summary {
+    /// Mapping runs.
+    pub runs: usize,
+    /// Runs whose mission finished.
+    pub finished: usize,
+    /// Images per run (mean).
+    pub images_per_run: f64,
+    /// Mission time over the runs, minutes (paper: 38.4 ± 1.7).
+    pub mission_min: MeanStd,
+    /// True grab position error, all runs' images, metres.
+    pub position_error_m: MeanStd,
+    /// Tracked grab position error (the paper's measure; paper: 0.10 ± 0.05 m).
+    pub tracked_position_error_m: MeanStd,
+    /// True heading error, all runs' images, degrees.
+    pub heading_error_deg: MeanStd,
+    /// Compass heading error (paper, by its tracker: 8.79 ± 9.99°).
+    pub compass_heading_error_deg: MeanStd,
+    /// Collisions, all runs together.
+    pub collisions: u64,
+    /// Tracking losses, all runs together.
+    pub tracking_losses: u64,
+    /// Images with another robot in view within r_los, all runs together.
+    pub images_with_robot_in_view: u64,
+    /// Cross-validation (paper: WGOH 0.43 ± 0.59 m, pixelwise 0.54 ± 0.79 m).
+    pub cross_validation: Vec<FeatureErrors>,
+    /// Particle filter along new paths, per feature.
+    pub particle_filter: Vec<PathSummary>,
+}
+
+/// The particle filter's results over several paths, for one feature.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct PathSummary {
+    /// The feature.
+    pub feature: String,
+    /// Paths driven.
+    pub paths: usize,
+    /// Error at the end of the paths, metres.
+    pub final_error_m: MeanStd,
+    /// Paths whose error ended under 0.5 m for good.
+    pub converged: usize,
+    /// Images needed to converge, over the converged paths.
+    pub images_to_converge: MeanStd,
+    /// Each path.
+    pub runs: Vec<PathRun>,
+}
+
+/// Pulls the summary together from the runs' `team` metrics and the localization results.
+pub fn summarize(
+    missions: &[serde_json::Value],
+    cross: &[FeatureErrors],
+    pf: &[PathRun],
+) -> Summary {
+    let values = |f: &dyn Fn(&serde_json::Value) -> Option<f64>| -> Vec<f64> {
+        missions.iter().filter_map(f).collect()
+    };
+    // Pooled over the runs' images (runs have nearly equal image counts): the mean of the
+    // means, and the spread of all images around it.
+    let pooled = |key: &'static str| {
+        let stats: Vec<(f64, f64)> = missions
+            .iter()
+            .filter_map(|m| Some((m[key]["mean"].as_f64()?, m[key]["std"].as_f64()?)))
+            .collect();
+        let n = stats.len().max(1) as f64;
+        let mean = stats.iter().map(|s| s.0).sum::<f64>() / n;
+        let second = stats.iter().map(|s| s.1 * s.1 + s.0 * s.0).sum::<f64>() / n;
+        MeanStd {
+            mean,
+            std: (second - mean * mean).max(0.0).sqrt(),
+        }
+    };
+    let total = |key: &'static str| missions.iter().filter_map(|m| m[key].as_u64()).sum::<u64>();
+    let particle_filter = Feature::ALL
+        .iter()
+        .map(|f| {
+            let runs: Vec<PathRun> = pf
+                .iter()
+                .filter(|r| r.feature == f.name())
+                .cloned()
+                .collect();
+            let finals: Vec<f64> = runs.iter().map(|r| r.final_error_m).collect();
+            let conv: Vec<f64> = runs
+                .iter()
+                .filter_map(|r| r.converged_at.map(|c| (c + 1) as f64))
+                .collect();
+            PathSummary {
+                feature: f.name().into(),
+                paths: runs.len(),
+                final_error_m: MeanStd::of(&finals),
+                converged: conv.len(),
+                images_to_converge: MeanStd::of(&conv),
+                runs,
+            }
+        })
+        .collect();
+    Summary {
+        runs: missions.len(),
+        finished: missions
+            .iter()
+            .filter(|m| m["finished"].as_bool() == Some(true))
+            .count(),
+        images_per_run: MeanStd::of(&values(&|m| m["imaged"].as_f64())).mean,
+        mission_min: MeanStd::of(&values(&|m| m["mission_min"].as_f64())),
+        position_error_m: pooled("position_error_m"),
+        tracked_position_error_m: pooled("tracked_position_error_m"),
+        heading_error_deg: pooled("heading_error_deg"),
+        compass_heading_error_deg: pooled("compass_heading_error_deg"),
+        collisions: total("collisions"),
+        tracking_losses: total("tracking_losses"),
+        images_with_robot_in_view: total("images_with_robot_in_view"),
+        cross_validation: cross.to_vec(),
+        particle_filter,
+    }
+}
+
+/// The summary as a Markdown table beside the paper's figures.
+pub fn markdown(s: &Summary) -> String {
+    let ms = |m: &MeanStd, unit: &str| format!("{:.2} ± {:.2}{unit}", m.mean, m.std);
+    let mut t = format!(
+        "| figure ({} mapping runs, {} finished, {:.1} images each) | hetsim | paper (seed 002, V.B) |\n|---|---|---|\n",
+        s.runs, s.finished, s.images_per_run
+    );
+    t += &format!(
+        "| mission time | {} | 38.4 ± 1.7 min |\n",
+        ms(&s.mission_min, " min")
+    );
+    t += &format!(
+        "| grab position error, tracked (true) | {} ({}) | 0.10 ± 0.05 m |\n",
+        ms(&s.tracked_position_error_m, " m"),
+        ms(&s.position_error_m, " m")
+    );
+    t += &format!(
+        "| grab heading error, compass (true) | {} ({}) | 8.79 ± 9.99° |\n",
+        ms(&s.compass_heading_error_deg, "°"),
+        ms(&s.heading_error_deg, "°")
+    );
+    t += &format!(
+        "| collisions, tracking losses, images with a robot in view | {}, {}, {} | none, none, none |\n",
+        s.collisions, s.tracking_losses, s.images_with_robot_in_view
+    );
+    for c in &s.cross_validation {
+        let paper = if c.feature == "wgoh" {
+            "0.43 ± 0.59 m"
+        } else {
+            "0.54 ± 0.79 m"
+        };
+        t += &format!(
+            "| cross-validation, {} (median; same vertex) | {} ({:.2} m; {:.0} %) | {paper} |\n",
+            c.feature,
+            ms(&c.error_m, " m"),
+            c.median_m,
+            100.0 * c.same_vertex
+        );
+    }
+    for p in &s.particle_filter {
+        t += &format!(
+            "| particle filter, {}: final error over {} paths (converged; images to converge) | {} ({}; {:.1}) | - |\n",
+            p.feature,
+            p.paths,
+            ms(&p.final_error_m, " m"),
+            p.converged,
+            p.images_to_converge.mean
+        );
+    }
+    t
+}
