@@ -274,7 +274,8 @@ pub fn direction_rad(scenario: &Scenario) -> f64 {
 }
 
 /// The mission's files: the database (`coverage/images/<col>_<row>.png` and
-/// `coverage/database.json` with the parent's estimate and the true pose of every grab), and
+/// `coverage/database.json` with the parent's estimate and the true pose of every grab, and
+/// its features: the 128 WGOH values and the 15 x 11 thumbnail), and
 /// the plots `plots/coverage-plan.png` (Fig. 5a) and `plots/coverage-paths.png` (Fig. 5b).
 pub fn files(
     scenario: &Scenario,
@@ -308,7 +309,15 @@ pub fn files(
             .iter()
             .find(|(n, _)| *n == d.child)
             .map(|(_, t)| truth_at(t, d.image.stamp_ns));
+        let gray = hetsim_vision::Gray::from_rgb(
+            d.image.width as usize,
+            d.image.height as usize,
+            &d.image.rgb,
+        );
+        let features = hetsim_vision::appearance::Features::of(&gray);
         entries.push(json!({
+            "wgoh": features.wgoh.0,
+            "thumbnail_15x11": features.thumbnail.data,
             "vertex": [d.vertex.0, d.vertex.1],
             "vertex_xy_m": grid.centre_of(d.vertex.0, d.vertex.1),
             "child": d.child,
