@@ -214,9 +214,8 @@ impl LocalMap {
         let gain = &pht * &s_inv_d;
         let nu_d = DVector::from_column_slice(nu.as_slice());
         self.x += &gain * nu_d;
-        self.p -= &gain * pht.transpose();
-        let pt = self.p.transpose();
-        self.p = (&self.p + pt) * 0.5;
+        // P ← P - K (P Hᵀ)ᵀ, in place (the caller symmetrizes once per frame).
+        self.p.gemm(-1.0, &gain, &pht.transpose(), 1.0);
         let q = self.quaternion().normalize();
         self.x.fixed_rows_mut::<4>(3).copy_from(&q);
         Some(Update::Accepted)
@@ -272,6 +271,18 @@ impl LocalMap {
             found: 0,
         });
         self.points.len() - 1
+    }
+
+    /// Makes the covariance exactly symmetric again (rounding in the updates drifts it).
+    pub fn symmetrize(&mut self) {
+        let n = self.p.nrows();
+        for r in 0..n {
+            for c in r + 1..n {
+                let v = 0.5 * (self.p[(r, c)] + self.p[(c, r)]);
+                self.p[(r, c)] = v;
+                self.p[(c, r)] = v;
+            }
+        }
     }
 
     /// Removes point `k` from the state.

@@ -4,9 +4,14 @@
 //! * [`quat`]: quaternions `[w, x, y, z]` with the Jacobians the filter needs;
 //! * [`idp`]: inverse-depth points: undelayed initialization from a pixel, projection, and
 //!   their analytic Jacobians;
+//! * [`ekf`]: the local EKF map: VO prediction, gated point updates, undelayed
+//!   initialization, deletion policy;
+//! * [`stack`]: the robot stack: stereo VO, the local maps in lockstep, sub-maps every 100
+//!   points;
 //!
 //! Every Jacobian is checked against finite differences in the module's tests.
 
 pub mod ekf;
 pub mod idp;
 pub mod quat;
+pub mod stack;

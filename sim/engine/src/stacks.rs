@@ -7,7 +7,8 @@ use hetsim_pilot::{
 use hetsim_scene::{DriveKind, MissionSpec, ResolvedRobot, Scenario, Sensor, SteeringKind};
 
 /// The stack for a robot: the waypoint followers of `hetsim-pilot` on ground truth, and, for
-/// robots with a stereo bench, stereo visual odometry beside them (`hetsim-vision`).
+/// robots with a stereo bench, stereo visual odometry and the local level of the SLAM beside
+/// them (`hetsim-slam`).
 pub fn build_stack(scenario: &Scenario, robot: &ResolvedRobot, seed: u64) -> Box<dyn RobotStack> {
     let pilot = build_pilot(scenario, robot);
     let stereo = robot.model.sensors.iter().find_map(|s| match s {
@@ -42,7 +43,13 @@ pub fn build_stack(scenario: &Scenario, robot: &ResolvedRobot, seed: u64) -> Box
                 body_from_mount.translation,
                 body_from_mount.rotation * hetsim_render::mount_to_optical(),
             );
-            Box::new(hetsim_vision::stack::VoStack::new(
+            // The seed's SLAM (which carries the stereo VO): local EKF sub-maps with
+            // inverse-depth points, initialized with the seed's values for the robot kind.
+            let params = match robot.model.body.drive {
+                DriveKind::Helicopter => hetsim_slam::stack::SlamParams::aerial(),
+                _ => hetsim_slam::stack::SlamParams::ground(),
+            };
+            Box::new(hetsim_slam::stack::SlamStack::new(
                 pilot,
                 name,
                 hetsim_vision::stereo::Bench {
@@ -50,6 +57,7 @@ pub fn build_stack(scenario: &Scenario, robot: &ResolvedRobot, seed: u64) -> Box
                     baseline_m: baseline,
                 },
                 body_from_camera,
+                params,
                 seed,
             ))
         }
