@@ -69,3 +69,13 @@ pub fn printed_digest(out: &Output) -> String {
         .expect("last line is the digest")
         .to_string()
 }
+
+/// The 512 x 384 pinhole (60° horizontal field of view) the rendered vision tests use.
+pub const TEST_INTRINSICS: hetsim_render::Intrinsics = hetsim_render::Intrinsics {
+    width: 512,
+    height: 384,
+    alpha_u: 443.4,
+    alpha_v: 443.4,
+    u0: 255.5,
+    v0: 191.5,
+};

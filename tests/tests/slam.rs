@@ -9,14 +9,7 @@ use hetsim_vision::stereo::Bench;
 use hetsim_vision::Camera;
 use nalgebra::Isometry3;
 
-const K: Intrinsics = Intrinsics {
-    width: 512,
-    height: 384,
-    alpha_u: 443.4,
-    alpha_v: 443.4,
-    u0: 255.5,
-    v0: 191.5,
-};
+const K: Intrinsics = hetsim_tests::TEST_INTRINSICS;
 
 /// A stack that does nothing: the SLAM's inner pilot.
 struct Still;

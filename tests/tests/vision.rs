@@ -23,14 +23,7 @@ fn village() -> Scenario {
     .unwrap()
 }
 
-const K: Intrinsics = Intrinsics {
-    width: 512,
-    height: 384,
-    alpha_u: 443.4,
-    alpha_v: 443.4,
-    u0: 255.5,
-    v0: 191.5,
-};
+const K: Intrinsics = hetsim_tests::TEST_INTRINSICS;
 const CAM: Camera = Camera {
     alpha_u: 443.4,
     alpha_v: 443.4,

@@ -6,12 +6,15 @@
 //!   their analytic Jacobians;
 //! * [`ekf`]: the local EKF map: VO prediction, gated point updates, undelayed
 //!   initialization, deletion policy;
+//! * [`graph`]: the global level: sub-map origins, relative and GPS constraints, Gauss-Newton
+//!   loop closure, compounding with covariance;
 //! * [`stack`]: the robot stack: stereo VO, the local maps in lockstep, sub-maps every 100
 //!   points;
 //!
 //! Every Jacobian is checked against finite differences in the module's tests.
 
 pub mod ekf;
+pub mod graph;
 pub mod idp;
 pub mod quat;
 pub mod stack;

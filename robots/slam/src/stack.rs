@@ -18,12 +18,18 @@
 //!    covariance) becomes the relative transform to the next sub-map, whose origin is that
 //!    pose.
 //!
-//! The global pose is the first sub-map's origin (the true pose at the first pair, as the
-//! seed's first map is its world frame) compounded with every closed sub-map's transform and
-//! the current robot pose. Without loop-closing events (the global level is not wired yet)
-//! this is the open-loop estimate, `slam/<robot>.tum`; the chained VO alone is `vo/<robot>`.
+//! 6. a GPS fix, once `gps_event_period_s` has passed since the last event, is an event: a new
+//!    sub-map starts, the fix constrains its origin, and the global graph
+//!    ([`crate::graph`]) is optimized.
+//!
+//! The first sub-map's origin is the true pose at the first pair (the seed's first map is its
+//! world frame). Every frame is kept as (sub-map, pose in it), and written through the
+//! graph's optimized origins (`slam/<robot>.tum`) and through the origins compounded without
+//! events (`slam-open/<robot>.tum`, the open-loop estimate); the chained VO alone is
+//! `vo/<robot>.tum`. Rendezvous and image-matching events are not wired yet.
 
 use crate::ekf::{LocalMap, Update};
+use crate::graph::{Edge, Graph, Prior};
 use crate::idp::Sensor;
 use hetsim_msgs::{Command, Image, Outgoing, Pose, RobotStack, SensorMsg, StackStatus};
 use hetsim_vision::harris::{detect, select_new, Corner};
@@ -31,7 +37,7 @@ use hetsim_vision::matching::{search_ellipse, Patch};
 use hetsim_vision::stereo::Bench;
 use hetsim_vision::vo::StereoVo;
 use hetsim_vision::Gray;
-use nalgebra::{Matrix3, Matrix6, Vector2};
+use nalgebra::{Matrix3, Matrix6, Vector2, Vector3};
 use std::collections::BTreeMap;
 
 /// Tuning of the local level.
@@ -51,6 +57,13 @@ pub struct SlamParams {
     pub max_search_px: f64,
     /// Deletion: searched at least this often and found in fewer than half.
     pub min_searches: u32,
+    /// A GPS fix becomes an event when this long has passed since the last event, seconds
+    /// (`None`: GPS unused).
+    pub gps_event_period_s: Option<f64>,
+    /// The GPS antenna in the body frame, metres.
+    pub gps_offset: Vector3<f64>,
+    /// Drift of a sub-map's relative transform as a fraction of its length (1σ per axis).
+    pub edge_drift: f64,
 }
 
 impl SlamParams {
@@ -81,6 +94,9 @@ impl SlamParams {
             sigma_px: 1.0,
             max_search_px: 10.0,
             min_searches: 6,
+            gps_event_period_s: Some(30.0),
+            gps_offset: Vector3::zeros(),
+            edge_drift: 0.03,
         }
     }
 }
@@ -97,15 +113,22 @@ pub struct SlamStack {
     /// Each point's patch, by id.
     patches: BTreeMap<u64, Patch>,
     next_id: u64,
-    /// World pose of the current sub-map's origin.
-    origin: Option<Pose>,
-    /// Closed sub-maps: (world origin, relative transform to the next, its covariance).
-    submaps: Vec<(Pose, Pose, Matrix6<f64>)>,
+    /// The global level: one node per sub-map origin (the current one last).
+    graph: Graph,
+    /// The same origins compounded without events (open loop).
+    open_origins: Vec<Pose>,
+    /// A GPS fix waiting to become an event at the next frame.
+    pending_fix: Option<hetsim_msgs::GpsFix>,
+    /// When the last event happened, nanoseconds.
+    last_event_ns: u64,
+    /// GPS events so far.
+    pub gps_events: usize,
     pending_left: Option<Image>,
     last_motion: (Pose, Matrix6<f64>),
     vo_pose: Option<Pose>,
     vo_trajectory: Vec<(u64, Pose)>,
-    trajectory: Vec<(u64, Pose)>,
+    /// `(stamp, sub-map, pose in the sub-map)` of every frame.
+    trajectory: Vec<(u64, usize, Pose)>,
     rng: Lcg,
     truth: Option<Pose>,
     /// Observations used, and rejected by the gate.
@@ -163,8 +186,11 @@ impl SlamStack {
             map: LocalMap::new(),
             patches: BTreeMap::new(),
             next_id: 0,
-            origin: None,
-            submaps: Vec::new(),
+            graph: Graph::default(),
+            open_origins: Vec::new(),
+            pending_fix: None,
+            last_event_ns: 0,
+            gps_events: 0,
             pending_left: None,
             last_motion: (Pose::identity(), Matrix6::identity() * 1e-4),
             vo_pose: None,
@@ -178,7 +204,7 @@ impl SlamStack {
 
     /// Number of sub-maps so far (the current one included).
     pub fn submaps(&self) -> usize {
-        self.submaps.len() + 1
+        self.graph.nodes.len()
     }
 
     /// The body motion `previous_from_current` and its covariance on `(Δp, δθ)`, from the
@@ -214,9 +240,10 @@ impl SlamStack {
         let Some(truth) = self.truth else {
             return;
         };
-        if self.origin.is_none() {
+        if self.graph.nodes.is_empty() {
             // The first pair: the first sub-map's origin is the robot's pose.
-            self.origin = Some(truth);
+            self.graph.add_node(truth);
+            self.open_origins.push(truth);
             self.vo_pose = Some(truth);
         } else {
             let (d, cov) = match &motion {
@@ -234,13 +261,15 @@ impl SlamStack {
             }
             self.observe(&l);
         }
+        if let Some(fix) = self.pending_fix.take() {
+            self.gps_event(&fix, left.stamp_ns);
+        }
         self.add_points(&l);
         if self.map.points.len() >= self.params.max_landmarks {
             self.new_submap();
         }
-        let origin = self.origin.expect("set above");
         self.trajectory
-            .push((left.stamp_ns, origin * self.map.pose()));
+            .push((left.stamp_ns, self.graph.nodes.len() - 1, self.map.pose()));
         self.vo_trajectory
             .push((left.stamp_ns, self.vo_pose.expect("set above")));
     }
@@ -337,14 +366,75 @@ impl SlamStack {
         }
     }
 
+    /// Closes the current sub-map: the robot pose in it becomes the relative transform to a
+    /// new node, and a new local map starts there.
     fn new_submap(&mut self) {
-        let origin = self.origin.expect("a map is open");
         let relative = self.map.pose();
-        let cov = self.map.pose_covariance();
-        self.submaps.push((origin, relative, cov));
-        self.origin = Some(origin * relative);
+        // Information of the relative transform. The filter's own covariance comes from
+        // VO's, which only knows its random errors; the drift VO shows against the truth
+        // (1 to 6 % of the distance in the village) is systematic. The edge therefore gets a
+        // drift term of `edge_drift` of the distance travelled in the sub-map (each axis) and
+        // 0.1 degree per metre, so that GPS events can pull the origins back.
+        let d = relative.translation.vector.norm();
+        let (st, sr) = (
+            self.params.edge_drift * d + 1e-3,
+            (0.1f64.to_radians() * d).max(1e-4),
+        );
+        let cov = self.map.pose_covariance()
+            + Matrix6::from_diagonal(&nalgebra::Vector6::new(
+                st * st,
+                st * st,
+                st * st,
+                sr * sr,
+                sr * sr,
+                sr * sr,
+            ));
+        let info = cov.try_inverse().unwrap_or_else(Matrix6::identity);
+        let last = self.graph.nodes.len() - 1;
+        let node = self.graph.add_node(self.graph.nodes[last] * relative);
+        self.graph.edges.push(Edge {
+            from: last,
+            to: node,
+            z: relative,
+            info,
+        });
+        let open = self.open_origins[last] * relative;
+        self.open_origins.push(open);
         self.map = LocalMap::new();
         self.patches.clear();
+    }
+
+    /// A GPS fix as an event (seed Section III): a new sub-map starts at the robot's pose, the
+    /// fix constrains its origin, and the graph is optimized.
+    fn gps_event(&mut self, fix: &hetsim_msgs::GpsFix, stamp_ns: u64) {
+        self.new_submap();
+        let node = self.graph.nodes.len() - 1;
+        let s2 = fix.sigma_m * fix.sigma_m;
+        self.graph.priors.push(Prior {
+            node,
+            offset: self.params.gps_offset,
+            position: Vector3::from(fix.position_m),
+            info: Matrix3::identity() / s2,
+        });
+        self.graph.optimize(10);
+        self.last_event_ns = stamp_ns;
+        self.gps_events += 1;
+    }
+
+    /// World poses of the frames through the graph's origins (`optimized`) or the open-loop
+    /// ones.
+    fn world_trajectory(&self, optimized: bool) -> Vec<(u64, Pose)> {
+        self.trajectory
+            .iter()
+            .map(|(t, node, local)| {
+                let origin = if optimized {
+                    self.graph.nodes[*node]
+                } else {
+                    self.open_origins[*node]
+                };
+                (*t, origin * local)
+            })
+            .collect()
     }
 }
 
@@ -353,7 +443,15 @@ impl RobotStack for SlamStack {
         for msg in inbox {
             match msg {
                 // The latest true pose until the first stereo pair anchors the estimate.
-                SensorMsg::TruthPose(p) if self.origin.is_none() => self.truth = Some(p.pose),
+                SensorMsg::TruthPose(p) if self.graph.nodes.is_empty() => self.truth = Some(p.pose),
+                SensorMsg::Gps(fix) => {
+                    let due = self.params.gps_event_period_s.is_some_and(|period| {
+                        fix.stamp_ns >= self.last_event_ns + (period * 1e9) as u64
+                    });
+                    if due && !self.graph.nodes.is_empty() {
+                        self.pending_fix = Some(fix.clone());
+                    }
+                }
                 SensorMsg::Image(img) if img.sensor == format!("{}/left", self.stereo) => {
                     self.pending_left = Some(img.clone())
                 }
@@ -383,7 +481,8 @@ impl RobotStack for SlamStack {
     fn trajectories(&self) -> Vec<(String, Vec<(u64, Pose)>)> {
         let mut t = self.inner.trajectories();
         t.push(("vo".to_string(), self.vo_trajectory.clone()));
-        t.push(("slam".to_string(), self.trajectory.clone()));
+        t.push(("slam".to_string(), self.world_trajectory(true)));
+        t.push(("slam-open".to_string(), self.world_trajectory(false)));
         t
     }
 }

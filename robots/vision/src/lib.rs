@@ -21,7 +21,6 @@ pub mod harris;
 pub mod image;
 pub mod matching;
 pub mod segments;
-pub mod stack;
 pub mod stereo;
 pub mod vo;
 

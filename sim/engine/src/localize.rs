@@ -7,7 +7,7 @@ use hetsim_core::{SimRng, Streams};
 use hetsim_coverage::localize::{ParticleFilter, PfParams, Place};
 use hetsim_msgs::pose_from_xyz_rpy;
 use hetsim_render::{CameraView, RenderOptions, Renderer};
-use hetsim_scene::{Scenario, Sensor};
+use hetsim_scene::Scenario;
 use hetsim_vision::appearance::{best_match, Feature, Features};
 use hetsim_vision::Gray;
 use rand::RngExt;
@@ -161,7 +161,7 @@ pub fn cross_validate(runs: &[Vec<DbImage>]) -> Vec<FeatureErrors> {
         .collect()
 }
 
-/// A child's camera on its scenario robot: body-from-mount, intrinsics, pixel noise.
+/// The camera of the scenario's first coverage child: body-from-mount, intrinsics, noise.
 fn child_camera(
     scenario: &Scenario,
 ) -> Result<(hetsim_msgs::Pose, hetsim_render::Intrinsics, f64), String> {
@@ -169,28 +169,7 @@ fn child_camera(
         .robots
         .iter()
         .filter(|r| matches!(r.spec.mission, hetsim_scene::MissionSpec::CoverageChild))
-        .flat_map(|r| r.model.sensors.iter())
-        .find_map(|s| match s {
-            Sensor::Camera {
-                mount,
-                width_px,
-                height_px,
-                hfov_deg,
-                intrinsics,
-                pixel_noise_sigma,
-                ..
-            } => Some((
-                pose_from_xyz_rpy(mount.xyz_m, mount.rpy_deg.map(f64::to_radians)),
-                crate::cameras::intrinsics_of(
-                    *width_px,
-                    *height_px,
-                    *hfov_deg,
-                    intrinsics.as_ref(),
-                ),
-                *pixel_noise_sigma,
-            )),
-            _ => None,
-        })
+        .find_map(crate::team::camera_of)
         .ok_or_else(|| {
             format!(
                 "{}: no coverage_child robot with a camera",

@@ -45,10 +45,18 @@ pub fn build_stack(scenario: &Scenario, robot: &ResolvedRobot, seed: u64) -> Box
             );
             // The seed's SLAM (which carries the stereo VO): local EKF sub-maps with
             // inverse-depth points, initialized with the seed's values for the robot kind.
-            let params = match robot.model.body.drive {
+            let mut params = match robot.model.body.drive {
                 DriveKind::Helicopter => hetsim_slam::stack::SlamParams::aerial(),
                 _ => hetsim_slam::stack::SlamParams::ground(),
             };
+            // GPS fixes are events only for robots that carry a receiver.
+            params.gps_event_period_s = None;
+            for s in &robot.model.sensors {
+                if let Sensor::Gps { mount, .. } = s {
+                    params.gps_offset = nalgebra::Vector3::from(mount.xyz_m);
+                    params.gps_event_period_s = Some(30.0);
+                }
+            }
             Box::new(hetsim_slam::stack::SlamStack::new(
                 pilot,
                 name,

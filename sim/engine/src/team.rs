@@ -107,31 +107,25 @@ pub(crate) fn truth_at(track: &[(u64, Pose)], stamp_ns: u64) -> Pose {
     track[best].1
 }
 
-/// A child's camera: its mount in the body frame and its intrinsics.
-fn child_camera(scenario: &Scenario, robot: usize) -> Option<(Pose, Intrinsics)> {
-    scenario.robots[robot]
-        .model
-        .sensors
-        .iter()
-        .find_map(|s| match s {
-            Sensor::Camera {
-                mount,
-                width_px,
-                height_px,
-                hfov_deg,
-                intrinsics,
-                ..
-            } => Some((
-                hetsim_msgs::pose_from_xyz_rpy(mount.xyz_m, mount.rpy_deg.map(f64::to_radians)),
-                crate::cameras::intrinsics_of(
-                    *width_px,
-                    *height_px,
-                    *hfov_deg,
-                    intrinsics.as_ref(),
-                ),
-            )),
-            _ => None,
-        })
+/// A robot's (first) pinhole camera: its mount in the body frame, its intrinsics and its
+/// pixel noise.
+pub(crate) fn camera_of(robot: &hetsim_scene::ResolvedRobot) -> Option<(Pose, Intrinsics, f64)> {
+    robot.model.sensors.iter().find_map(|s| match s {
+        Sensor::Camera {
+            mount,
+            width_px,
+            height_px,
+            hfov_deg,
+            intrinsics,
+            pixel_noise_sigma,
+            ..
+        } => Some((
+            hetsim_msgs::pose_from_xyz_rpy(mount.xyz_m, mount.rpy_deg.map(f64::to_radians)),
+            crate::cameras::intrinsics_of(*width_px, *height_px, *hfov_deg, intrinsics.as_ref()),
+            *pixel_noise_sigma,
+        )),
+        _ => None,
+    })
 }
 
 /// The distance to the nearest other robot that appears in the image child `robot` took at
@@ -144,7 +138,7 @@ fn robot_in_view(
     robot: usize,
     stamp_ns: u64,
 ) -> Option<f64> {
-    let (mount, k) = child_camera(scenario, robot)?;
+    let (mount, k, _) = camera_of(&scenario.robots[robot])?;
     let body = truth_at(&truth[robot], stamp_ns);
     let cam = body * mount;
     let optical = Isometry3::from_parts(cam.translation, cam.rotation * mount_to_optical());
