@@ -1,6 +1,9 @@
 //! Hierarchical visual EKF-SLAM of seed `000_955784a9d1cf66bf` (Sections II-IV): local
 //! EKF sub-maps with inverse-depth points, and the geometry they rest on.
 //!
+//! * [`apl`]: anchored Plücker lines (Eqs. 7-19): frame transformations, un-anchoring,
+//!   projection, endpoint measurements, back-projection with the β prior, with Jacobians (not
+//!   yet in the filter);
 //! * [`quat`]: quaternions `[w, x, y, z]` with the Jacobians the filter needs;
 //! * [`idp`]: inverse-depth points: undelayed initialization from a pixel, projection, and
 //!   their analytic Jacobians;
@@ -13,6 +16,7 @@
 //!
 //! Every Jacobian is checked against finite differences in the module's tests.
 
+pub mod apl;
 pub mod ekf;
 pub mod graph;
 pub mod idp;
