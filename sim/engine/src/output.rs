@@ -107,6 +107,39 @@ pub fn write_run(
             .expect("PNG encodes in memory");
         files.push((format!("plots/{}-{}.png", e.kind, e.robot), png));
     }
+    // Fig. 7 of seed 000 per robot: VO, open-loop and event-corrected SLAM against truth.
+    for (robot, truth) in &result.truth {
+        let kinds = ["vo", "slam-open", "slam"];
+        let series: Vec<&crate::Estimate> = kinds
+            .iter()
+            .filter_map(|k| {
+                result
+                    .estimates
+                    .iter()
+                    .find(|e| e.kind == *k && e.robot == *robot)
+            })
+            .collect();
+        if series.len() < kinds.len() {
+            continue;
+        }
+        let first = series[0].poses[0].0;
+        let xyz = |(t, p): &(u64, Pose)| (t.saturating_sub(first), p.translation.vector.into());
+        let last = series[0].poses[series[0].poses.len() - 1].0;
+        let truth: Vec<(u64, [f64; 3])> = truth
+            .iter()
+            .filter(|(t, _)| *t >= first && *t <= last)
+            .map(xyz)
+            .collect();
+        let lines: Vec<Vec<(u64, [f64; 3])>> = series
+            .iter()
+            .map(|e| e.poses.iter().map(xyz).collect())
+            .collect();
+        let mut png = Vec::new();
+        crate::plot::trajectories_plot(&truth, &lines)
+            .write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
+            .expect("PNG encodes in memory");
+        files.push((format!("plots/fig7-{robot}.png"), png));
+    }
     if let Some(team) = &result.team {
         files.extend(crate::team::files(scenario, team, &result.truth));
     }
