@@ -163,6 +163,10 @@ enum Cmd {
         /// a VO step, on rendered village frames of the rover moving 6 cm per frame.
         #[arg(long)]
         vision: bool,
+        /// Instead: the local EKF's prediction and point updates per frame against the
+        /// number of mapped points (synthetic, every point observed once per frame).
+        #[arg(long)]
+        slam: bool,
     },
 }
 
@@ -333,6 +337,7 @@ fn real_main() -> Result<()> {
             anyhow::ensure!(moved == 0, "{moved} metric(s) moved beyond their tolerance; if the change is intended, run `hetsim regress --update` and commit the baselines");
             println!("regress: {} metrics within tolerance", rows.len());
         }
+        Cmd::Bench { slam: true, .. } => bench_slam(),
         Cmd::Bench { vision: true, .. } => {
             use hetsim_render::{CameraView, Intrinsics, RenderOptions, Renderer};
             use hetsim_vision::{harris, segments, stereo, vo::StereoVo, Camera, Gray};
@@ -770,6 +775,56 @@ fn execute(
     println!("results: {}", files.dir.display());
     println!("digest: {}", files.digest);
     Ok(())
+}
+
+/// `hetsim bench --slam`: EKF time per frame against the number of points.
+fn bench_slam() {
+    use hetsim_slam::ekf::LocalMap;
+    use hetsim_slam::idp::Sensor;
+    use nalgebra::{Isometry3, Matrix3, Matrix6, Translation3, UnitQuaternion, Vector2};
+    let r = Matrix3::new(0.0, 0.0, 1.0, -1.0, 0.0, 0.0, 0.0, -1.0, 0.0);
+    let sensor = Sensor::new(
+        hetsim_vision::Camera {
+            alpha_u: 887.0,
+            alpha_v: 887.0,
+            u0: 511.5,
+            v0: 383.5,
+        },
+        &Isometry3::from_parts(
+            Translation3::new(0.0, 0.0, 1.4),
+            UnitQuaternion::from_matrix(&r),
+        ),
+    );
+    println!("| points in the local map | state size | ms per frame (prediction + an update per point) | us per update |");
+    println!("|---|---|---|---|");
+    for n in [10usize, 25, 50, 100] {
+        let mut map = LocalMap::new();
+        for k in 0..n {
+            let px = Vector2::new(40.0 + (k * 97 % 940) as f64, 40.0 + (k * 61 % 680) as f64);
+            map.add_point(&sensor, &px, 1.0, 0.1, 0.2, k as u64);
+        }
+        let frames = 20;
+        let start = wall_clock();
+        for f in 0..frames {
+            map.predict(
+                &Isometry3::translation(0.05, 0.0, 0.0),
+                &Matrix6::from_diagonal_element(1e-6),
+            );
+            for k in 0..n {
+                if let Some((pr, _)) = map.predict_point(&sensor, k, 1.0) {
+                    let z = pr.pixel + Vector2::new(0.1 * (f % 3) as f64, -0.1);
+                    std::hint::black_box(map.update(&sensor, k, &z, 1.0, 9.21));
+                }
+            }
+            map.symmetrize();
+        }
+        let ms = start.elapsed().as_secs_f64() * 1e3 / frames as f64;
+        println!(
+            "| {n} | {} | {ms:.2} | {:.1} |",
+            map.x.len(),
+            ms * 1e3 / n as f64
+        );
+    }
 }
 
 /// `hetsim localize`: mapping runs, cross-validation, particle filter paths.
