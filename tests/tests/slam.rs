@@ -81,6 +81,9 @@ fn run_sequence(frames: usize) -> (f64, f64, f64, usize) {
         stack.step(stamp_ns, &inbox);
     }
     let truth = body(frames).translation.vector;
+    let points = stack.map_points();
+    assert!(points.len() >= 18, "{} mapped points", points.len());
+    assert!(points.iter().all(|(_, p)| p.iter().all(|v| v.is_finite())));
     let t = stack.trajectories();
     let end = |kind: &str| {
         let poses = &t.iter().find(|(k, _)| k == kind).unwrap().1;

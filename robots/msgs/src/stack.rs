@@ -62,4 +62,10 @@ pub trait RobotStack: Send {
     fn mission_over(&self) -> bool {
         false
     }
+
+    /// Mapped 3D points in the world frame, with the sub-map each belongs to (a SLAM
+    /// stack's map; the engine writes them to `map.ply`).
+    fn map_points(&self) -> Vec<(usize, [f64; 3])> {
+        Vec::new()
+    }
 }

@@ -127,6 +127,8 @@ pub struct SlamStack {
     last_motion: (Pose, Matrix6<f64>),
     vo_pose: Option<Pose>,
     vo_trajectory: Vec<(u64, Pose)>,
+    /// Points of the closed sub-maps: `(sub-map, point in its frame)`.
+    closed_points: Vec<(usize, Vector3<f64>)>,
     /// `(stamp, sub-map, pose in the sub-map)` of every frame.
     trajectory: Vec<(u64, usize, Pose)>,
     rng: Lcg,
@@ -187,6 +189,7 @@ impl SlamStack {
             patches: BTreeMap::new(),
             next_id: 0,
             graph: Graph::default(),
+            closed_points: Vec::new(),
             open_origins: Vec::new(),
             pending_fix: None,
             last_event_ns: 0,
@@ -391,6 +394,12 @@ impl SlamStack {
             ));
         let info = cov.try_inverse().unwrap_or_else(Matrix6::identity);
         let last = self.graph.nodes.len() - 1;
+        self.closed_points.extend(
+            self.map
+                .euclidean_points()
+                .into_iter()
+                .map(|(_, p)| (last, p)),
+        );
         let node = self.graph.add_node(self.graph.nodes[last] * relative);
         self.graph.edges.push(Edge {
             from: last,
@@ -476,6 +485,24 @@ impl RobotStack for SlamStack {
 
     fn outbox(&mut self) -> Vec<Outgoing> {
         self.inner.outbox()
+    }
+
+    fn map_points(&self) -> Vec<(usize, [f64; 3])> {
+        let current = self.graph.nodes.len().saturating_sub(1);
+        self.closed_points
+            .iter()
+            .copied()
+            .chain(
+                self.map
+                    .euclidean_points()
+                    .into_iter()
+                    .map(|(_, p)| (current, p)),
+            )
+            .filter_map(|(node, p)| {
+                let w = self.graph.nodes.get(node)? * nalgebra::Point3::from(p);
+                Some((node, [w.x, w.y, w.z]))
+            })
+            .collect()
     }
 
     fn trajectories(&self) -> Vec<(String, Vec<(u64, Pose)>)> {

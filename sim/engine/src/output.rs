@@ -107,6 +107,9 @@ pub fn write_run(
             .expect("PNG encodes in memory");
         files.push((format!("plots/{}-{}.png", e.kind, e.robot), png));
     }
+    if !result.map_points.is_empty() {
+        files.push(("map.ply".to_string(), ply(&result.map_points)));
+    }
     // Fig. 7 of seed 000 per robot: VO, open-loop and event-corrected SLAM against truth.
     for (robot, truth) in &result.truth {
         let kinds = ["vo", "slam-open", "slam"];
@@ -224,4 +227,55 @@ pub fn write_run(
         let _ = std::fs::remove_dir_all(&tmp);
     }
     written.map(|()| RunFiles { dir, digest })
+}
+
+/// An ASCII PLY of mapped points, coloured by robot (in order of first appearance), with
+/// each point's robot index and sub-map as properties.
+fn ply(points: &[(String, usize, [f64; 3])]) -> Vec<u8> {
+    const COLOURS: [[u8; 3]; 4] = [[204, 0, 0], [52, 101, 164], [78, 154, 6], [117, 80, 123]];
+    let mut robots: Vec<&str> = Vec::new();
+    for (r, _, _) in points {
+        if !robots.contains(&r.as_str()) {
+            robots.push(r);
+        }
+    }
+    let mut out = format!(
+        "ply\nformat ascii 1.0\ncomment hetsim SLAM map points in the world frame (x east, y north, z up, metres)\ncomment robots: {}\nelement vertex {}\nproperty double x\nproperty double y\nproperty double z\nproperty uchar red\nproperty uchar green\nproperty uchar blue\nproperty int robot\nproperty int submap\nend_header\n",
+        robots.join(" "),
+        points.len()
+    );
+    for (r, node, p) in points {
+        let k = robots.iter().position(|x| x == r).unwrap_or(0);
+        let c = COLOURS[k % COLOURS.len()];
+        out.push_str(&format!(
+            "{:.4} {:.4} {:.4} {} {} {} {k} {node}\n",
+            p[0], p[1], p[2], c[0], c[1], c[2]
+        ));
+    }
+    out.into_bytes()
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn ply_has_a_vertex_per_point_coloured_by_robot() {
+        let pts = vec![
+            ("dala".to_string(), 0, [1.0, 2.0, 3.0]),
+            ("ressac".to_string(), 2, [4.0, 5.0, 6.0]),
+            ("dala".to_string(), 1, [7.0, 8.0, 9.0]),
+        ];
+        let text = String::from_utf8(super::ply(&pts)).unwrap();
+        assert!(
+            text.contains("element vertex 3\n") && text.contains("comment robots: dala ressac")
+        );
+        let body: Vec<&str> = text.split("end_header\n").nth(1).unwrap().lines().collect();
+        assert_eq!(
+            body,
+            [
+                "1.0000 2.0000 3.0000 204 0 0 0 0",
+                "4.0000 5.0000 6.0000 52 101 164 1 2",
+                "7.0000 8.0000 9.0000 204 0 0 0 1"
+            ]
+        );
+    }
 }

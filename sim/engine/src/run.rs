@@ -91,6 +91,8 @@ pub struct RunResult {
     pub estimates: Vec<Estimate>,
     /// A coverage mission's outcome (the parent's report).
     pub team: Option<crate::team::TeamOutcome>,
+    /// The SLAM stacks' mapped points in the world frame: (robot, sub-map, point).
+    pub map_points: Vec<(String, usize, [f64; 3])>,
 }
 
 /// A trajectory a robot stack estimated.
@@ -361,6 +363,16 @@ fn run_on_worker(
                     .map_err(RunError::Localize)?;
         }
     }
+    let map_points: Vec<(String, usize, [f64; 3])> = stacks
+        .iter()
+        .enumerate()
+        .flat_map(|(i, s)| {
+            let name = names[i].clone();
+            s.map_points()
+                .into_iter()
+                .map(move |(node, p)| (name.clone(), node, p))
+        })
+        .collect();
     let mut estimates = Vec::new();
     for (i, stack) in stacks.iter().enumerate() {
         for (kind, poses) in stack.trajectories() {
@@ -390,6 +402,7 @@ fn run_on_worker(
         adapter,
         estimates,
         team,
+        map_points,
     })
 }
 
