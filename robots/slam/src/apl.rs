@@ -14,10 +14,6 @@ use nalgebra::{Matrix3, SMatrix, Vector2, Vector3, Vector4};
 /// An anchored Plücker line.
 pub type Apl = SMatrix<f64, 9, 1>;
 
-fn skew(v: &Vector3<f64>) -> Matrix3<f64> {
-    Matrix3::new(0.0, -v.z, v.y, v.z, 0.0, -v.x, -v.y, v.x, 0.0)
-}
-
 fn parts(a: &Apl) -> (Vector3<f64>, Vector3<f64>, Vector3<f64>) {
     (
         Vector3::new(a[0], a[1], a[2]),
@@ -95,15 +91,15 @@ pub fn project(sensor: &Sensor, p: &Vector3<f64>, q: &Vector4<f64>, a: &Apl) -> 
     let line = m * r.transpose() * w;
     let mrt = m * r.transpose();
     // ∂w/∂T = [v]x, ∂w/∂p0 = -[v]x, ∂w/∂n = I, ∂w/∂v = [T - p0]x... with sign: w = n + v × (T - p0).
-    let dw_dt = skew(&v);
+    let dw_dt = crate::quat::skew(&v);
     let d_p = mrt * dw_dt;
     let d_q = m * d_rot_t_dq(q, &w) + mrt * dw_dt * d_rot_dq(q, &sensor.t_bc);
     let mut d_a = SMatrix::<f64, 3, 9>::zeros();
     d_a.fixed_view_mut::<3, 3>(0, 0)
-        .copy_from(&(-mrt * skew(&v)));
+        .copy_from(&(-mrt * crate::quat::skew(&v)));
     d_a.fixed_view_mut::<3, 3>(0, 3).copy_from(&mrt);
     d_a.fixed_view_mut::<3, 3>(0, 6)
-        .copy_from(&(-mrt * skew(&(t - p0))));
+        .copy_from(&(-mrt * crate::quat::skew(&(t - p0))));
     LineProjection {
         line,
         d_p,

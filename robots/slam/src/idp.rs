@@ -13,9 +13,7 @@
 
 use crate::quat::{d_rot_dq, d_rot_t_dq, rot};
 use hetsim_vision::Camera;
-use nalgebra::{
-    Isometry3, Matrix2, Matrix2x3, Matrix3, Matrix3x4, SMatrix, Vector2, Vector3, Vector4,
-};
+use nalgebra::{Isometry3, Matrix2x3, Matrix3, Matrix3x4, SMatrix, Vector2, Vector3, Vector4};
 
 /// An inverse-depth point.
 pub type Idp = SMatrix<f64, 6, 1>;
@@ -184,11 +182,6 @@ pub fn init(
         d_q,
         d_pixel,
     }
-}
-
-/// A 2 x 2 helper: the inverse of a symmetric positive definite matrix, if any.
-pub fn inverse2(s: &Matrix2<f64>) -> Option<Matrix2<f64>> {
-    s.try_inverse()
 }
 
 #[cfg(test)]

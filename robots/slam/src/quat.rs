@@ -31,7 +31,8 @@ pub fn to_unit(q: &Vector4<f64>) -> nalgebra::UnitQuaternion<f64> {
     nalgebra::UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(q[0], q[1], q[2], q[3]))
 }
 
-fn skew(v: &Vector3<f64>) -> Matrix3<f64> {
+/// The cross-product matrix: `skew(a) b = a × b`.
+pub fn skew(v: &Vector3<f64>) -> Matrix3<f64> {
     Matrix3::new(0.0, -v.z, v.y, v.z, 0.0, -v.x, -v.y, v.x, 0.0)
 }
 

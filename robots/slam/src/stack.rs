@@ -163,10 +163,6 @@ impl rand::TryRng for Lcg {
     }
 }
 
-fn skew(v: &nalgebra::Vector3<f64>) -> Matrix3<f64> {
-    Matrix3::new(0.0, -v.z, v.y, v.z, 0.0, -v.x, -v.y, v.x, 0.0)
-}
-
 impl SlamStack {
     /// SLAM on the stereo camera named `stereo`, whose left optical frame is at
     /// `body_from_camera`, around `inner`.
@@ -220,7 +216,7 @@ impl SlamStack {
         let mut ad = Matrix6::zeros();
         ad.fixed_view_mut::<3, 3>(0, 0).copy_from(&r);
         ad.fixed_view_mut::<3, 3>(0, 3)
-            .copy_from(&(skew(&b.translation.vector) * r));
+            .copy_from(&(crate::quat::skew(&b.translation.vector) * r));
         ad.fixed_view_mut::<3, 3>(3, 3).copy_from(&r);
         // Right perturbation to additive (Δp, δθ): Δp moves by R_D δρ.
         let mut t = Matrix6::identity();

@@ -236,64 +236,7 @@ fn line(img: &mut RgbImage, a: (f64, f64), b: (f64, f64), color: Rgb<u8>) {
 /// Estimated against true trajectory: top view (x east, y north, equal scales) on the left,
 /// altitude against time on the right. Truth in black, the estimate in blue.
 pub fn trajectory_plot(truth: &[(u64, [f64; 3])], estimate: &[(u64, [f64; 3])]) -> RgbImage {
-    let (w, h, pad) = (960i64, 420i64, 40i64);
-    let mut img = RgbImage::from_pixel(w as u32, h as u32, BG);
-    let all = || truth.iter().chain(estimate.iter());
-    let (mut x0, mut x1, mut y0, mut y1, mut z0, mut z1) =
-        (f64::MAX, f64::MIN, f64::MAX, f64::MIN, f64::MAX, f64::MIN);
-    for (_, p) in all() {
-        x0 = x0.min(p[0]);
-        x1 = x1.max(p[0]);
-        y0 = y0.min(p[1]);
-        y1 = y1.max(p[1]);
-        z0 = z0.min(p[2]);
-        z1 = z1.max(p[2]);
-    }
-    let t1 = all().map(|(t, _)| *t).max().unwrap_or(1).max(1) as f64;
-    let span = (x1 - x0).max(y1 - y0).max(1e-3);
-    let side = (h - 2 * pad) as f64;
-    let top = |p: &[f64; 3]| {
-        (
-            pad as f64 + (p[0] - x0) / span * side,
-            (h - pad) as f64 - (p[1] - y0) / span * side,
-        )
-    };
-    let zspan = (z1 - z0).max(1.0);
-    let alt_x0 = (pad * 2 + side as i64) as f64;
-    let alt_w = w as f64 - alt_x0 - pad as f64;
-    let alt = |t: u64, z: f64| {
-        (
-            alt_x0 + t as f64 / t1 * alt_w,
-            (h - pad) as f64 - (z - z0 + 0.05 * zspan) / (1.1 * zspan) * side,
-        )
-    };
-    for (x, y, ww) in [(pad, pad, side as i64), (alt_x0 as i64, pad, alt_w as i64)] {
-        rect(&mut img, x, y, ww, 1, GRID);
-        rect(&mut img, x, y + side as i64, ww, 1, INK);
-        rect(&mut img, x, y, 1, side as i64, INK);
-    }
-    for (series, color) in [(truth, INK), (estimate, MAPPING)] {
-        for pair in series.windows(2) {
-            line(&mut img, top(&pair[0].1), top(&pair[1].1), color);
-            line(
-                &mut img,
-                alt(pair[0].0, pair[0].1[2]),
-                alt(pair[1].0, pair[1].1[2]),
-                color,
-            );
-        }
-    }
-    // Scale: the top view's side in metres, the altitude range in metres.
-    text(&mut img, pad, h - pad + 12, &format!("{:.1}", span), 2, INK);
-    text(
-        &mut img,
-        alt_x0 as i64,
-        h - pad + 12,
-        &format!("{:.1}-{:.1}", z0, z1),
-        2,
-        INK,
-    );
-    img
+    trajectories_plot(truth, &[estimate.to_vec()])
 }
 
 /// Several estimates against the truth, like Fig. 7 of seed 000: top view (equal scales) on
