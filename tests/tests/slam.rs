@@ -51,6 +51,7 @@ fn run_sequence(frames: usize) -> (f64, f64, f64, usize) {
     };
     let mut stack = SlamStack::new(
         Box::new(Still),
+        "dala",
         "stereo",
         Bench {
             camera,
@@ -110,4 +111,140 @@ fn local_slam_tracks_a_rendered_rover_sequence_no_worse_than_vo() {
         "slam {slam:.3} m over {travelled:.1} m"
     );
     assert!(slam <= vo * 1.05, "slam {slam:.3} vs vo {vo:.3}");
+}
+
+fn metrics(dir: &std::path::Path) -> serde_json::Value {
+    serde_json::from_slice(&std::fs::read(dir.join("metrics.json")).unwrap()).unwrap()
+}
+
+/// The short village in lockstep (Dala and Ressac rendered at 512 x 384): a rendezvous just
+/// after the start on both robots, Ressac's image match on Dala's first key frames when it
+/// comes back, the graphs exchanged over the radio; the cooperative estimates beat the open
+/// loop for both robots and the image match pulls Ressac's altitude back.
+#[test]
+fn cooperative_slam_beats_open_loop_in_the_short_village() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("run");
+    hetsim_tests::printed_digest(&hetsim_tests::hetsim(
+        &[
+            "run",
+            "scenarios/village-short.toml",
+            "--out",
+            out.to_str().unwrap(),
+        ],
+        &[],
+    ));
+    let m = metrics(&out);
+    let ate = |kind: &str, robot: &str| {
+        m["estimates"][format!("{kind}/{robot}")]["ate_m"]
+            .as_f64()
+            .unwrap()
+    };
+    for robot in ["dala", "ressac"] {
+        let (coop, open) = (ate("slam", robot), ate("slam-open", robot));
+        assert!(
+            coop < open,
+            "{robot}: cooperative ATE {coop:.3} m, open loop {open:.3} m"
+        );
+    }
+    let slam = &m["slam"];
+    let events = |robot: &str, kind: &str| -> Vec<serde_json::Value> {
+        slam["robots"][robot]["events"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .filter(|e| e["kind"] == kind)
+            .cloned()
+            .collect()
+    };
+    // The rendezvous: both robots at the same frame, each linked to the other's origin.
+    let (rd, rr) = (events("dala", "rendezvous"), events("ressac", "rendezvous"));
+    assert_eq!((rd.len(), rr.len()), (1, 1), "{slam}");
+    assert_eq!(rd[0]["time_s"], rr[0]["time_s"]);
+    assert!(
+        rd[0]["time_s"].as_f64().unwrap() < 2.0,
+        "just after the start"
+    );
+    for robot in ["dala", "ressac"] {
+        let c = &slam["robots"][robot]["counters"];
+        assert_eq!(c["unresolved_links"], 0, "{robot}: {c}");
+        assert!(c["shares_received"].as_u64().unwrap() >= 2, "{robot}: {c}");
+        let nees = slam["robots"][robot]["nees_mean"].as_f64().unwrap();
+        assert!(nees.is_finite() && nees > 0.0, "{robot}: NEES {nees}");
+    }
+    // The image match: Ressac's altitude error drops.
+    let im = events("ressac", "image_match");
+    assert!(!im.is_empty(), "no image match: {slam}");
+    let (before, after) = (
+        im[0]["altitude_error_before_m"].as_f64().unwrap(),
+        im[0]["altitude_error_after_m"].as_f64().unwrap(),
+    );
+    assert!(
+        after < 0.5 * before,
+        "altitude error {before:.2} m before the image match, {after:.2} m after"
+    );
+    assert!(
+        slam["joint"]["slam"]["ate_m"].as_f64().unwrap()
+            < slam["joint"]["slam-open"]["ate_m"].as_f64().unwrap()
+    );
+    // The graph with covariances, and the Fig. 7 plots.
+    let graph: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("slam/ressac-graph.json")).unwrap())
+            .unwrap();
+    let origins = graph["origins"].as_array().unwrap();
+    assert_eq!(
+        origins.len() as u64,
+        slam["robots"]["ressac"]["submaps"].as_u64().unwrap()
+    );
+    assert_eq!(origins[1]["covariance"].as_array().unwrap().len(), 6);
+    assert!(out.join("plots/fig7-ressac.png").exists());
+}
+
+/// The same inputs give the same digest with the SLAM, its events and the radio on one and on
+/// two threads; `--open-loop` runs without events or radio, so its SLAM is its open loop.
+#[test]
+fn slam_with_events_is_deterministic_and_open_loop_has_none() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = |name: &str, threads: &'static str, extra: &[&str]| {
+        let out = dir.path().join(name);
+        let mut args = vec![
+            "run",
+            "scenarios/village-short.toml",
+            "--duration",
+            "8",
+            "--out",
+            out.to_str().unwrap(),
+        ];
+        args.extend_from_slice(extra);
+        let args: Vec<String> = args.iter().map(|s| s.to_string()).collect();
+        std::thread::spawn(move || {
+            let a: Vec<&str> = args.iter().map(String::as_str).collect();
+            let printed = hetsim_tests::hetsim(&a, &[("RAYON_NUM_THREADS", threads)]);
+            (out, hetsim_tests::printed_digest(&printed))
+        })
+    };
+    let (one, two) = (run("one", "1", &[]), run("two", "2", &[]));
+    let (one, two) = (one.join().unwrap(), two.join().unwrap());
+    assert_eq!(one.1, two.1, "digest depends on the thread count");
+    let read = |out: &std::path::Path, f: &str| std::fs::read(out.join(f)).unwrap();
+    assert_eq!(
+        read(&one.0, "slam/ressac.tum"),
+        read(&two.0, "slam/ressac.tum")
+    );
+    assert!(!metrics(&one.0)["slam"]["robots"]["ressac"]["events"]
+        .as_array()
+        .unwrap()
+        .is_empty());
+    let open = run("open", "2", &["--open-loop"]).join().unwrap();
+    let m = metrics(&open.0);
+    for robot in ["dala", "ressac"] {
+        let r = &m["slam"]["robots"][robot];
+        assert!(r["events"].as_array().unwrap().is_empty(), "{r}");
+        assert!(r["counters"].get("shares_sent").is_none(), "{r}");
+        assert_eq!(
+            read(&open.0, &format!("slam/{robot}.tum")),
+            read(&open.0, &format!("slam-open/{robot}.tum"))
+        );
+    }
+    assert_ne!(open.1, one.1);
 }

@@ -23,7 +23,7 @@ pub use command::Command;
 pub use geometry::{pose_from_xyz_rpy, wrap_angle, yaw_of, Pose};
 pub use message::{
     ChildTracks, CompassReading, CoverageMission, DatabaseImage, Delivered, GpsFix, Image,
-    ImuSample, LaserScan, Mission, OccupancyGrid, Outgoing, PoseStamped, Rendezvous, SensorMsg,
-    TeamReport, Track, WheelOdometry,
+    ImageMatch, ImuSample, LaserScan, Mission, OccupancyGrid, Outgoing, PoseStamped, Rendezvous,
+    SensorMsg, SlamEvent, SlamReport, TeamReport, Track, WheelOdometry,
 };
 pub use stack::{RobotStack, StackStatus};

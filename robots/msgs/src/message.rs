@@ -264,6 +264,59 @@ pub struct Rendezvous {
     pub sigma_rad: f64,
 }
 
+/// The emulated image-to-image matching event of the seed (Section V): the relative pose
+/// between this robot's current frame and a past key frame (a sub-map origin) of another
+/// robot, recovered by matching the two frames.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ImageMatch {
+    /// Sim time of this robot's frame, nanoseconds.
+    pub stamp_ns: u64,
+    /// Sensor name on the robot.
+    pub sensor: String,
+    /// The robot whose key frame matched.
+    pub other: String,
+    /// Stamp of the other robot's key frame, nanoseconds.
+    pub other_stamp_ns: u64,
+    /// `self_from_other`: the other robot's body pose at its key frame in this robot's body
+    /// frame now.
+    pub relative: Pose,
+    /// Standard deviation of the relative position, metres (each axis).
+    pub sigma_m: f64,
+    /// Standard deviation of the relative attitude, radians (each axis).
+    pub sigma_rad: f64,
+}
+
+/// An event of a SLAM stack's global level, with the robot's estimate of its own pose
+/// just before and just after the graph was optimized with it.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SlamEvent {
+    /// `"gps"`, `"rendezvous"` or `"image_match"`.
+    pub kind: String,
+    /// The frame at which it happened, nanoseconds.
+    pub stamp_ns: u64,
+    /// The other robot (empty for a GPS fix).
+    pub other: String,
+    /// The robot's world pose estimate before.
+    pub before: Pose,
+    /// And after.
+    pub after: Pose,
+}
+
+/// What a SLAM stack built, for the evaluation: sub-map origins with covariance, the
+/// covariance of every pose of its `slam` trajectory, and its events.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct SlamReport {
+    /// Its sub-map origins: stamp, optimized world pose, marginal covariance of the right
+    /// perturbation `(δt, δθ)` (6 x 6, column-major).
+    pub origins: Vec<(u64, Pose, Vec<f64>)>,
+    /// Covariance of each pose of the `slam` trajectory, in its order (same convention).
+    pub covariances: Vec<Vec<f64>>,
+    /// Events in order.
+    pub events: Vec<SlamEvent>,
+    /// Counters (observations used and gated, shares sent and received, unresolved links).
+    pub counters: std::collections::BTreeMap<String, u64>,
+}
+
 /// A camera image.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Image {
@@ -325,6 +378,8 @@ pub enum SensorMsg {
     ChildTracks(ChildTracks),
     /// Rendezvous sensor.
     Rendezvous(Rendezvous),
+    /// Image-to-image matching against another robot's key frames.
+    ImageMatch(ImageMatch),
     /// Radio.
     Comms(Delivered),
     /// Camera.
@@ -343,6 +398,7 @@ impl SensorMsg {
             SensorMsg::LaserScan(m) => m.stamp_ns,
             SensorMsg::ChildTracks(m) => m.stamp_ns,
             SensorMsg::Rendezvous(m) => m.stamp_ns,
+            SensorMsg::ImageMatch(m) => m.stamp_ns,
             SensorMsg::Comms(m) => m.stamp_ns,
             SensorMsg::Image(m) => m.stamp_ns,
         }

@@ -68,4 +68,16 @@ pub trait RobotStack: Send {
     fn map_points(&self) -> Vec<(usize, [f64; 3])> {
         Vec::new()
     }
+
+    /// Stamps of the frames the stack made key frames (a SLAM stack's sub-map origins), in
+    /// order. The simulator's emulated image matcher matches other robots' frames against
+    /// them.
+    fn keyframes(&self) -> &[u64] {
+        &[]
+    }
+
+    /// A SLAM stack's report (sub-map origins, pose covariances, events).
+    fn slam_report(&self) -> Option<crate::SlamReport> {
+        None
+    }
 }

@@ -51,6 +51,8 @@ pub struct Graph {
     pub edges: Vec<Edge>,
     /// Absolute position measurements.
     pub priors: Vec<Prior>,
+    /// Nodes held fixed (the gauge); the first node when empty.
+    pub anchors: Vec<usize>,
 }
 
 /// `Exp` of `(δt, δθ)` as used here: translation `δt`, rotation `Exp(δθ)`.
@@ -116,69 +118,99 @@ impl Graph {
         e + p
     }
 
-    /// Gauss-Newton over every node but the first, at most `iterations` steps; returns the
-    /// final cost.
-    pub fn optimize(&mut self, iterations: usize) -> f64 {
-        let n = self.nodes.len();
-        if n < 2 {
-            return self.cost();
-        }
-        let dim = 6 * (n - 1);
-        let mut cost = self.cost();
-        for _ in 0..iterations {
-            let mut h = DMatrix::<f64>::zeros(dim, dim);
-            let mut g = DVector::<f64>::zeros(dim);
-            let block = |i: usize| (i > 0).then(|| 6 * (i - 1));
-            for e in &self.edges {
-                let (a, b) = (self.nodes[e.from], self.nodes[e.to]);
-                let r = e.residual(&a, &b);
-                let ja = numeric6(|d| e.residual(&(a * exp(d)), &b));
-                let jb = numeric6(|d| e.residual(&a, &(b * exp(d))));
-                for (bi, ji) in [(block(e.from), &ja), (block(e.to), &jb)] {
-                    let Some(bi) = bi else { continue };
-                    let gi = ji.transpose() * e.info * r;
-                    for k in 0..6 {
-                        g[bi + k] += gi[k];
-                    }
-                    for (bj, jj) in [(block(e.from), &ja), (block(e.to), &jb)] {
-                        let Some(bj) = bj else { continue };
-                        let hij = ji.transpose() * e.info * jj;
-                        let mut view = h.view_mut((bi, bj), (6, 6));
-                        view += DMatrix::from_column_slice(6, 6, hij.as_slice());
-                    }
-                }
-            }
-            for p in &self.priors {
-                let Some(bi) = block(p.node) else { continue };
-                let t = self.nodes[p.node];
-                let r = p.residual(&t);
-                let mut j = SMatrix::<f64, 3, 6>::zeros();
-                for k in 0..6 {
-                    let mut d = Vector6::zeros();
-                    d[k] = 1e-6;
-                    let plus = p.residual(&(t * exp(&d)));
-                    d[k] = -1e-6;
-                    let minus = p.residual(&(t * exp(&d)));
-                    j.set_column(k, &((plus - minus) / 2e-6));
-                }
-                let gi = j.transpose() * p.info * r;
+    /// The column block of each node in the normal equations (`None`: an anchor).
+    fn blocks(&self) -> (Vec<Option<usize>>, usize) {
+        let mut next = 0;
+        let blocks = (0..self.nodes.len())
+            .map(|i| {
+                let fixed = if self.anchors.is_empty() {
+                    i == 0
+                } else {
+                    self.anchors.contains(&i)
+                };
+                (!fixed).then(|| {
+                    next += 6;
+                    next - 6
+                })
+            })
+            .collect();
+        (blocks, next)
+    }
+
+    /// The Gauss-Newton normal equations `(H, g)` at the current nodes over the free nodes.
+    fn normal_equations(
+        &self,
+        blocks: &[Option<usize>],
+        dim: usize,
+    ) -> (DMatrix<f64>, DVector<f64>) {
+        let mut h = DMatrix::<f64>::zeros(dim, dim);
+        let mut g = DVector::<f64>::zeros(dim);
+        let mut add = |bi: usize, bj: usize, hij: &Matrix6<f64>| {
+            let mut view = h.view_mut((bi, bj), (6, 6));
+            view += DMatrix::from_column_slice(6, 6, hij.as_slice());
+        };
+        for e in &self.edges {
+            let (a, b) = (self.nodes[e.from], self.nodes[e.to]);
+            let r = e.residual(&a, &b);
+            let ja = numeric6(|d| e.residual(&(a * exp(d)), &b));
+            let jb = numeric6(|d| e.residual(&a, &(b * exp(d))));
+            let parts = [(blocks[e.from], &ja), (blocks[e.to], &jb)];
+            for (bi, ji) in parts {
+                let Some(bi) = bi else { continue };
+                let gi = ji.transpose() * e.info * r;
                 for k in 0..6 {
                     g[bi + k] += gi[k];
                 }
-                let hii = j.transpose() * p.info * j;
-                let mut view = h.view_mut((bi, bi), (6, 6));
-                view += DMatrix::from_column_slice(6, 6, hii.as_slice());
+                for (bj, jj) in parts {
+                    let Some(bj) = bj else { continue };
+                    add(bi, bj, &(ji.transpose() * e.info * jj));
+                }
             }
-            // A whisper of damping keeps nodes without constraints solvable.
-            for k in 0..dim {
-                h[(k, k)] += 1e-9;
+        }
+        for p in &self.priors {
+            let Some(bi) = blocks[p.node] else { continue };
+            let t = self.nodes[p.node];
+            let r = p.residual(&t);
+            let mut j = SMatrix::<f64, 3, 6>::zeros();
+            for k in 0..6 {
+                let mut d = Vector6::zeros();
+                d[k] = 1e-6;
+                let plus = p.residual(&(t * exp(&d)));
+                d[k] = -1e-6;
+                let minus = p.residual(&(t * exp(&d)));
+                j.set_column(k, &((plus - minus) / 2e-6));
             }
+            let gi = j.transpose() * p.info * r;
+            for k in 0..6 {
+                g[bi + k] += gi[k];
+            }
+            add(bi, bi, &(j.transpose() * p.info * j));
+        }
+        // A whisper of damping keeps nodes without constraints solvable.
+        for k in 0..dim {
+            h[(k, k)] += 1e-9;
+        }
+        (h, g)
+    }
+
+    /// Gauss-Newton over every node but the anchors, at most `iterations` steps; returns the
+    /// final cost.
+    pub fn optimize(&mut self, iterations: usize) -> f64 {
+        let (blocks, dim) = self.blocks();
+        let mut cost = self.cost();
+        if dim == 0 {
+            return cost;
+        }
+        for _ in 0..iterations {
+            let (h, g) = self.normal_equations(&blocks, dim);
             let Some(chol) = h.cholesky() else { break };
             let step = chol.solve(&(-g));
             let old = self.nodes.clone();
-            for i in 1..n {
-                let d = Vector6::from_column_slice(&step.as_slice()[6 * (i - 1)..6 * i]);
-                self.nodes[i] *= exp(&d);
+            for (i, b) in blocks.iter().enumerate() {
+                if let Some(b) = b {
+                    let d = Vector6::from_column_slice(&step.as_slice()[*b..b + 6]);
+                    self.nodes[i] *= exp(&d);
+                }
             }
             let new_cost = self.cost();
             if new_cost > cost {
@@ -192,6 +224,25 @@ impl Graph {
             }
         }
         cost
+    }
+
+    /// The marginal covariance of every node's right perturbation at the current estimate
+    /// (the diagonal blocks of `H⁻¹`; zero for anchors).
+    pub fn marginals(&self) -> Vec<Matrix6<f64>> {
+        let (blocks, dim) = self.blocks();
+        let cov = if dim == 0 {
+            None
+        } else {
+            let (h, _) = self.normal_equations(&blocks, dim);
+            h.cholesky().map(|c| c.inverse())
+        };
+        blocks
+            .iter()
+            .map(|b| match (b, &cov) {
+                (Some(b), Some(c)) => Matrix6::from_fn(|i, j| c[(b + i, b + j)]),
+                _ => Matrix6::zeros(),
+            })
+            .collect()
     }
 }
 
@@ -301,6 +352,42 @@ mod tests {
         assert!(
             error < drift / 2.0 && error < 0.1,
             "end error {error:.3} m (open loop {drift:.3} m)"
+        );
+    }
+
+    /// On a chain from the anchor, the marginals are the compounded edge covariances.
+    #[test]
+    fn chain_marginals_equal_compounded_covariances() {
+        let z1 = Isometry3::from_parts(
+            Translation3::new(2.0, 0.5, 0.1),
+            UnitQuaternion::from_euler_angles(0.05, -0.1, 0.6),
+        );
+        let z2 = Isometry3::from_parts(
+            Translation3::new(1.0, -1.0, 0.0),
+            UnitQuaternion::from_euler_angles(0.0, 0.2, -0.3),
+        );
+        let c1 = Matrix6::from_diagonal(&Vector6::new(1e-2, 2e-2, 1e-2, 1e-3, 2e-3, 3e-3));
+        let c2 = Matrix6::from_diagonal(&Vector6::new(3e-2, 1e-2, 2e-2, 2e-3, 1e-3, 1e-3));
+        let mut g = Graph::default();
+        g.add_node(Isometry3::identity());
+        g.add_node(z1);
+        g.add_node(z1 * z2);
+        for (from, z, c) in [(0, z1, c1), (1, z2, c2)] {
+            g.edges.push(Edge {
+                from,
+                to: from + 1,
+                z,
+                info: c.try_inverse().unwrap(),
+            });
+        }
+        let m = g.marginals();
+        assert_eq!(m[0], Matrix6::zeros());
+        assert!((m[1] - c1).abs().max() < 1e-6, "{}", m[1]);
+        let (_, c) = compound(&z1, &c1, &z2, &c2);
+        assert!(
+            (m[2] - c).abs().max() < 1e-6 * c.abs().max().max(1.0),
+            "{}\n{c}",
+            m[2]
         );
     }
 

@@ -11,6 +11,8 @@
 //!   initialization, deletion policy;
 //! * [`graph`]: the global level: sub-map origins, relative and GPS constraints, Gauss-Newton
 //!   loop closure, compounding with covariance;
+//! * [`global`]: the team's graph on each robot: its own part, the parts received over the
+//!   radio, event links (rendezvous, image matching) resolved by origin stamps;
 //! * [`stack`]: the robot stack: stereo VO, the local maps in lockstep, sub-maps every 100
 //!   points;
 //!
@@ -18,6 +20,7 @@
 
 pub mod apl;
 pub mod ekf;
+pub mod global;
 pub mod graph;
 pub mod idp;
 pub mod quat;

@@ -18,20 +18,31 @@
 //!    covariance) becomes the relative transform to the next sub-map, whose origin is that
 //!    pose.
 //!
-//! 6. a GPS fix, once `gps_event_period_s` has passed since the last event, is an event: a new
-//!    sub-map starts, the fix constrains its origin, and the global graph
-//!    ([`crate::graph`]) is optimized.
+//! 6. events (seed Section III) start a new sub-map at the frame they happen, link its origin,
+//!    and the team's graph ([`crate::global`]) is optimized:
+//!    * a GPS fix, once `gps_event_period_s` has passed since the last event, constrains the
+//!      origin's antenna position;
+//!    * a rendezvous (this robot's rendezvous sensor sees another robot; once per robot per
+//!      `rendezvous_period_s`) links the origin to the other robot's origin made at the same
+//!      stamp: both robots see each other and both start a sub-map then (a full rendezvous);
+//!    * an image match (the emulated matcher found one of another robot's key frames, i.e.
+//!      sub-map origins, under this robot) links the origin to that past origin.
+//! 7. the robot's part of the graph goes to every robot it has met, over the radio, after each
+//!    event and every `share_period_s`; parts received are merged and the graph optimized.
 //!
 //! The first sub-map's origin is the true pose at the first pair (the seed's first map is its
-//! world frame). Every frame is kept as (sub-map, pose in it), and written through the
-//! graph's optimized origins (`slam/<robot>.tum`) and through the origins compounded without
-//! events (`slam-open/<robot>.tum`, the open-loop estimate); the chained VO alone is
-//! `vo/<robot>.tum`. Rendezvous and image-matching events are not wired yet.
+//! world frame). Every frame is kept as (sub-map, pose in it, its covariance), and written
+//! through the graph's optimized origins (`slam/<robot>.tum`) and through the origins
+//! compounded without events (`slam-open/<robot>.tum`, the open-loop estimate); the chained
+//! VO alone is `vo/<robot>.tum`. With `cooperative` off there are no events and no radio.
 
 use crate::ekf::{LocalMap, Update};
-use crate::graph::{Edge, Graph, Prior};
+use crate::global::{relative_info, Fix, Global, Link, Share};
 use crate::idp::Sensor;
-use hetsim_msgs::{Command, Image, Outgoing, Pose, RobotStack, SensorMsg, StackStatus};
+use hetsim_msgs::{
+    Command, Delivered, Image, ImageMatch, Outgoing, Pose, Rendezvous, RobotStack, SensorMsg,
+    SlamEvent, SlamReport, StackStatus,
+};
 use hetsim_vision::harris::{detect, select_new, Corner};
 use hetsim_vision::matching::{search_ellipse, Patch};
 use hetsim_vision::stereo::Bench;
@@ -39,6 +50,9 @@ use hetsim_vision::vo::StereoVo;
 use hetsim_vision::Gray;
 use nalgebra::{Matrix3, Matrix6, Vector2, Vector3};
 use std::collections::BTreeMap;
+
+/// The radio topic of a robot's part of the graph.
+pub const SHARE_TOPIC: &str = "slam/graph";
 
 /// Tuning of the local level.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -64,6 +78,12 @@ pub struct SlamParams {
     pub gps_offset: Vector3<f64>,
     /// Drift of a sub-map's relative transform as a fraction of its length (1σ per axis).
     pub edge_drift: f64,
+    /// Events and the radio on (`false`: open loop, the chain of sub-maps only).
+    pub cooperative: bool,
+    /// Least time between two rendezvous events with the same robot, seconds.
+    pub rendezvous_period_s: f64,
+    /// The robot's part of the graph is sent at least this often, seconds.
+    pub share_period_s: f64,
 }
 
 impl SlamParams {
@@ -97,13 +117,17 @@ impl SlamParams {
             gps_event_period_s: Some(30.0),
             gps_offset: Vector3::zeros(),
             edge_drift: 0.03,
+            cooperative: true,
+            rendezvous_period_s: 120.0,
+            share_period_s: 5.0,
         }
     }
 }
 
-/// Pilot + stereo VO + local EKF sub-maps.
+/// Pilot + stereo VO + local EKF sub-maps + the team's graph.
 pub struct SlamStack {
     inner: Box<dyn RobotStack>,
+    robot: String,
     params: SlamParams,
     vo: StereoVo,
     stereo: String,
@@ -113,24 +137,35 @@ pub struct SlamStack {
     /// Each point's patch, by id.
     patches: BTreeMap<u64, Patch>,
     next_id: u64,
-    /// The global level: one node per sub-map origin (the current one last).
-    graph: Graph,
-    /// The same origins compounded without events (open loop).
+    /// The team's graph (from the first pair on); this robot's origins first.
+    global: Option<Global>,
+    /// This robot's origins compounded without events (open loop).
     open_origins: Vec<Pose>,
     /// A GPS fix waiting to become an event at the next frame.
     pending_fix: Option<hetsim_msgs::GpsFix>,
+    /// A rendezvous and an image match waiting for their frame.
+    pending_rendezvous: Option<Rendezvous>,
+    pending_match: Option<ImageMatch>,
     /// When the last event happened, nanoseconds.
     last_event_ns: u64,
-    /// GPS events so far.
-    pub gps_events: usize,
+    /// The last rendezvous with each robot, nanoseconds.
+    last_rendezvous: BTreeMap<String, u64>,
+    /// Robots met (by an event or a part received): the radio's addressees.
+    peers: std::collections::BTreeSet<String>,
+    /// When this robot's part was last sent, nanoseconds.
+    last_share_ns: Option<u64>,
+    outgoing: Vec<Outgoing>,
+    /// Events so far.
+    events: Vec<SlamEvent>,
+    counters: BTreeMap<String, u64>,
     pending_left: Option<Image>,
     last_motion: (Pose, Matrix6<f64>),
     vo_pose: Option<Pose>,
     vo_trajectory: Vec<(u64, Pose)>,
     /// Points of the closed sub-maps: `(sub-map, point in its frame)`.
     closed_points: Vec<(usize, Vector3<f64>)>,
-    /// `(stamp, sub-map, pose in the sub-map)` of every frame.
-    trajectory: Vec<(u64, usize, Pose)>,
+    /// `(stamp, sub-map, pose in the sub-map, its covariance)` of every frame.
+    trajectory: Vec<(u64, usize, Pose, Matrix6<f64>)>,
     rng: Lcg,
     truth: Option<Pose>,
     /// Observations used, and rejected by the gate.
@@ -164,10 +199,11 @@ impl rand::TryRng for Lcg {
 }
 
 impl SlamStack {
-    /// SLAM on the stereo camera named `stereo`, whose left optical frame is at
-    /// `body_from_camera`, around `inner`.
+    /// SLAM for robot `robot` on the stereo camera named `stereo`, whose left optical frame
+    /// is at `body_from_camera`, around `inner`.
     pub fn new(
         inner: Box<dyn RobotStack>,
+        robot: &str,
         stereo: &str,
         bench: Bench,
         body_from_camera: Pose,
@@ -176,6 +212,7 @@ impl SlamStack {
     ) -> Self {
         Self {
             inner,
+            robot: robot.to_string(),
             params,
             vo: StereoVo::new(bench),
             stereo: stereo.to_string(),
@@ -184,12 +221,19 @@ impl SlamStack {
             map: LocalMap::new(),
             patches: BTreeMap::new(),
             next_id: 0,
-            graph: Graph::default(),
+            global: None,
             closed_points: Vec::new(),
             open_origins: Vec::new(),
             pending_fix: None,
+            pending_rendezvous: None,
+            pending_match: None,
             last_event_ns: 0,
-            gps_events: 0,
+            last_rendezvous: BTreeMap::new(),
+            peers: Default::default(),
+            last_share_ns: None,
+            outgoing: Vec::new(),
+            events: Vec::new(),
+            counters: BTreeMap::new(),
             pending_left: None,
             last_motion: (Pose::identity(), Matrix6::identity() * 1e-4),
             vo_pose: None,
@@ -203,7 +247,25 @@ impl SlamStack {
 
     /// Number of sub-maps so far (the current one included).
     pub fn submaps(&self) -> usize {
-        self.graph.nodes.len()
+        self.global.as_ref().map_or(0, Global::len)
+    }
+
+    /// Events of a kind so far.
+    pub fn events_of(&self, kind: &str) -> usize {
+        self.events.iter().filter(|e| e.kind == kind).count()
+    }
+
+    fn count(&mut self, what: &str, n: u64) {
+        *self.counters.entry(what.to_string()).or_default() += n;
+    }
+
+    /// The current world pose estimate: the current origin and the pose in its map.
+    fn world_pose(&self) -> Pose {
+        let g = self
+            .global
+            .as_ref()
+            .expect("events come after the first pair");
+        g.origin(g.len() - 1) * self.map.pose()
     }
 
     /// The body motion `previous_from_current` and its covariance on `(Δp, δθ)`, from the
@@ -239,9 +301,10 @@ impl SlamStack {
         let Some(truth) = self.truth else {
             return;
         };
-        if self.graph.nodes.is_empty() {
+        let stamp = left.stamp_ns;
+        if self.global.is_none() {
             // The first pair: the first sub-map's origin is the robot's pose.
-            self.graph.add_node(truth);
+            self.global = Some(Global::new(&self.robot, truth, stamp));
             self.open_origins.push(truth);
             self.vo_pose = Some(truth);
         } else {
@@ -261,14 +324,34 @@ impl SlamStack {
             self.observe(&l);
         }
         if let Some(fix) = self.pending_fix.take() {
-            self.gps_event(&fix, left.stamp_ns);
+            self.gps_event(&fix, stamp);
+        }
+        if let Some(r) = self.pending_rendezvous.take_if(|r| r.stamp_ns <= stamp) {
+            let sigmas = (r.sigma_m, r.sigma_rad);
+            self.link_event(
+                "rendezvous",
+                (&r.other, r.stamp_ns),
+                r.relative,
+                sigmas,
+                stamp,
+            );
+            self.last_rendezvous.insert(r.other, r.stamp_ns);
+        }
+        if let Some(m) = self.pending_match.take_if(|m| m.stamp_ns <= stamp) {
+            let sigmas = (m.sigma_m, m.sigma_rad);
+            let link = (m.other.as_str(), m.other_stamp_ns);
+            self.link_event("image_match", link, m.relative, sigmas, stamp);
         }
         self.add_points(&l);
         if self.map.points.len() >= self.params.max_landmarks {
-            self.new_submap();
+            self.new_submap(stamp);
         }
-        self.trajectory
-            .push((left.stamp_ns, self.graph.nodes.len() - 1, self.map.pose()));
+        self.trajectory.push((
+            stamp,
+            self.submaps() - 1,
+            self.map.pose(),
+            self.map.pose_covariance(),
+        ));
         self.vo_trajectory
             .push((left.stamp_ns, self.vo_pose.expect("set above")));
     }
@@ -365,9 +448,9 @@ impl SlamStack {
         }
     }
 
-    /// Closes the current sub-map: the robot pose in it becomes the relative transform to a
-    /// new node, and a new local map starts there.
-    fn new_submap(&mut self) {
+    /// Closes the current sub-map at the frame `stamp`: the robot pose in it becomes the
+    /// relative transform to a new node, and a new local map starts there.
+    fn new_submap(&mut self, stamp: u64) {
         let relative = self.map.pose();
         // Information of the relative transform. The filter's own covariance comes from
         // VO's, which only knows its random errors; the drift VO shows against the truth
@@ -389,51 +472,151 @@ impl SlamStack {
                 sr * sr,
             ));
         let info = cov.try_inverse().unwrap_or_else(Matrix6::identity);
-        let last = self.graph.nodes.len() - 1;
+        let last = self.submaps() - 1;
         self.closed_points.extend(
             self.map
                 .euclidean_points()
                 .into_iter()
                 .map(|(_, p)| (last, p)),
         );
-        let node = self.graph.add_node(self.graph.nodes[last] * relative);
-        self.graph.edges.push(Edge {
-            from: last,
-            to: node,
-            z: relative,
-            info,
-        });
+        self.global
+            .as_mut()
+            .expect("a sub-map closes after the first pair")
+            .push(stamp, relative, info);
         let open = self.open_origins[last] * relative;
         self.open_origins.push(open);
         self.map = LocalMap::new();
         self.patches.clear();
     }
 
+    /// The origin for an event at frame `stamp`: a new sub-map starts there (the seed starts
+    /// one after every event), unless one already started at this frame.
+    fn event_node(&mut self, stamp: u64) -> usize {
+        let g = self
+            .global
+            .as_ref()
+            .expect("events come after the first pair");
+        if g.own.stamps.last() != Some(&stamp) {
+            self.new_submap(stamp);
+        }
+        self.submaps() - 1
+    }
+
+    /// Optimizes the team's graph after an event and logs it; the part goes to the peers.
+    fn after_event(&mut self, kind: &str, other: &str, stamp: u64, before: Pose) {
+        let g = self
+            .global
+            .as_mut()
+            .expect("events come after the first pair");
+        g.optimize();
+        let after = self.world_pose();
+        self.events.push(SlamEvent {
+            kind: kind.to_string(),
+            stamp_ns: stamp,
+            other: other.to_string(),
+            before,
+            after,
+        });
+        self.last_event_ns = stamp;
+        self.share(stamp);
+    }
+
     /// A GPS fix as an event (seed Section III): a new sub-map starts at the robot's pose, the
     /// fix constrains its origin, and the graph is optimized.
-    fn gps_event(&mut self, fix: &hetsim_msgs::GpsFix, stamp_ns: u64) {
-        self.new_submap();
-        let node = self.graph.nodes.len() - 1;
+    fn gps_event(&mut self, fix: &hetsim_msgs::GpsFix, stamp: u64) {
+        let before = self.world_pose();
+        let node = self.event_node(stamp);
         let s2 = fix.sigma_m * fix.sigma_m;
-        self.graph.priors.push(Prior {
-            node,
-            offset: self.params.gps_offset,
-            position: Vector3::from(fix.position_m),
-            info: Matrix3::identity() / s2,
-        });
-        self.graph.optimize(10);
-        self.last_event_ns = stamp_ns;
-        self.gps_events += 1;
+        let offset = self.params.gps_offset;
+        self.global
+            .as_mut()
+            .expect("after the first pair")
+            .fix(Fix {
+                node,
+                offset,
+                position: Vector3::from(fix.position_m),
+                info: Matrix3::identity() / s2,
+            });
+        self.after_event("gps", "", stamp, before);
+    }
+
+    /// A link event (seed Sections III and V): the origin made now is linked to the other
+    /// robot's origin of stamp `link.1` by the measured `self_from_other` `z`, whose position
+    /// and rotation deviations are `sigmas`. For a rendezvous that is the origin the other
+    /// robot made at the same frame (it saw this robot too); for an image match, the past
+    /// origin whose frame matched.
+    fn link_event(
+        &mut self,
+        kind: &str,
+        link: (&str, u64),
+        z: Pose,
+        sigmas: (f64, f64),
+        stamp: u64,
+    ) {
+        let (other, other_stamp_ns) = link;
+        let before = self.world_pose();
+        let node = self.event_node(stamp);
+        self.global
+            .as_mut()
+            .expect("after the first pair")
+            .link(Link {
+                kind: kind.to_string(),
+                node,
+                other: other.to_string(),
+                other_stamp_ns,
+                z,
+                info: relative_info(sigmas.0, sigmas.1),
+            });
+        self.peers.insert(other.to_string());
+        self.after_event(kind, other, stamp, before);
+    }
+
+    /// Sends this robot's part of the graph to every robot met.
+    fn share(&mut self, now_ns: u64) {
+        let Some(g) = self.global.as_ref() else {
+            return;
+        };
+        if !self.params.cooperative || self.peers.is_empty() {
+            return;
+        }
+        let payload = serde_json::to_vec(&g.own).expect("a share serializes");
+        for to in &self.peers {
+            self.outgoing.push(Outgoing {
+                to: to.clone(),
+                topic: SHARE_TOPIC.to_string(),
+                payload: payload.clone(),
+            });
+        }
+        self.count("shares_sent", self.peers.len() as u64);
+        self.last_share_ns = Some(now_ns);
+    }
+
+    /// Another robot's part arrived.
+    fn receive(&mut self, d: &Delivered) {
+        let Ok(share) = serde_json::from_slice::<Share>(&d.payload) else {
+            self.count("shares_malformed", 1);
+            return;
+        };
+        let Some(g) = self.global.as_mut() else {
+            return;
+        };
+        self.peers.insert(share.robot.clone());
+        g.receive(share);
+        g.optimize();
+        self.count("shares_received", 1);
     }
 
     /// World poses of the frames through the graph's origins (`optimized`) or the open-loop
     /// ones.
     fn world_trajectory(&self, optimized: bool) -> Vec<(u64, Pose)> {
+        let Some(g) = self.global.as_ref() else {
+            return Vec::new();
+        };
         self.trajectory
             .iter()
-            .map(|(t, node, local)| {
+            .map(|(t, node, local, _)| {
                 let origin = if optimized {
-                    self.graph.nodes[*node]
+                    g.origin(*node)
                 } else {
                     self.open_origins[*node]
                 };
@@ -448,15 +631,7 @@ impl RobotStack for SlamStack {
         for msg in inbox {
             match msg {
                 // The latest true pose until the first stereo pair anchors the estimate.
-                SensorMsg::TruthPose(p) if self.graph.nodes.is_empty() => self.truth = Some(p.pose),
-                SensorMsg::Gps(fix) => {
-                    let due = self.params.gps_event_period_s.is_some_and(|period| {
-                        fix.stamp_ns >= self.last_event_ns + (period * 1e9) as u64
-                    });
-                    if due && !self.graph.nodes.is_empty() {
-                        self.pending_fix = Some(fix.clone());
-                    }
-                }
+                SensorMsg::TruthPose(p) if self.global.is_none() => self.truth = Some(p.pose),
                 SensorMsg::Image(img) if img.sensor == format!("{}/left", self.stereo) => {
                     self.pending_left = Some(img.clone())
                 }
@@ -469,8 +644,38 @@ impl RobotStack for SlamStack {
                         self.on_pair(&left, img);
                     }
                 }
+                // Events need the first origin; open loop uses none.
+                _ if self.global.is_none() || !self.params.cooperative => {}
+                SensorMsg::Gps(fix) => {
+                    let due = self.params.gps_event_period_s.is_some_and(|period| {
+                        fix.stamp_ns >= self.last_event_ns + (period * 1e9) as u64
+                    });
+                    if due {
+                        self.pending_fix = Some(fix.clone());
+                    }
+                }
+                SensorMsg::Rendezvous(r) => {
+                    let period = (self.params.rendezvous_period_s * 1e9) as u64;
+                    let due = self
+                        .last_rendezvous
+                        .get(&r.other)
+                        .is_none_or(|t| r.stamp_ns >= t + period);
+                    if due && self.pending_rendezvous.is_none() {
+                        self.pending_rendezvous = Some(r.clone());
+                    }
+                }
+                SensorMsg::ImageMatch(m) if self.pending_match.is_none() => {
+                    self.pending_match = Some(m.clone());
+                }
+                SensorMsg::Comms(d) if d.topic == SHARE_TOPIC => self.receive(d),
                 _ => {}
             }
+        }
+        let due = self
+            .last_share_ns
+            .is_some_and(|t| now_ns >= t + (self.params.share_period_s * 1e9) as u64);
+        if due || (self.last_share_ns.is_none() && !self.peers.is_empty()) {
+            self.share(now_ns);
         }
         self.inner.step(now_ns, inbox)
     }
@@ -480,11 +685,55 @@ impl RobotStack for SlamStack {
     }
 
     fn outbox(&mut self) -> Vec<Outgoing> {
-        self.inner.outbox()
+        let mut out = std::mem::take(&mut self.outgoing);
+        out.extend(self.inner.outbox());
+        out
+    }
+
+    fn keyframes(&self) -> &[u64] {
+        self.global.as_ref().map_or(&[], |g| &g.own.stamps)
+    }
+
+    fn slam_report(&self) -> Option<SlamReport> {
+        let g = self.global.as_ref()?;
+        let marginals = g.own_covariances();
+        let origins = (0..g.len())
+            .map(|k| {
+                (
+                    g.own.stamps[k],
+                    g.origin(k),
+                    marginals[k].as_slice().to_vec(),
+                )
+            })
+            .collect();
+        // A frame's world pose is its origin compounded with its pose in the sub-map.
+        let covariances = self
+            .trajectory
+            .iter()
+            .map(|(_, node, local, cov)| {
+                let (_, c) =
+                    crate::graph::compound(&g.origin(*node), &marginals[*node], local, cov);
+                c.as_slice().to_vec()
+            })
+            .collect();
+        let mut counters = self.counters.clone();
+        counters.insert("observations_used".into(), self.updates.0);
+        counters.insert("observations_gated".into(), self.updates.1);
+        counters.insert("unresolved_links".into(), g.unresolved as u64);
+        counters.insert("submaps".into(), g.len() as u64);
+        Some(SlamReport {
+            origins,
+            covariances,
+            events: self.events.clone(),
+            counters,
+        })
     }
 
     fn map_points(&self) -> Vec<(usize, [f64; 3])> {
-        let current = self.graph.nodes.len().saturating_sub(1);
+        let Some(g) = self.global.as_ref() else {
+            return Vec::new();
+        };
+        let current = g.len() - 1;
         self.closed_points
             .iter()
             .copied()
@@ -494,9 +743,9 @@ impl RobotStack for SlamStack {
                     .into_iter()
                     .map(|(_, p)| (current, p)),
             )
-            .filter_map(|(node, p)| {
-                let w = self.graph.nodes.get(node)? * nalgebra::Point3::from(p);
-                Some((node, [w.x, w.y, w.z]))
+            .map(|(node, p)| {
+                let w = g.origin(node) * nalgebra::Point3::from(p);
+                (node, [w.x, w.y, w.z])
             })
             .collect()
     }

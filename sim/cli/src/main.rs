@@ -42,6 +42,10 @@ enum Cmd {
         /// Do not render the cameras (no images reach the robots).
         #[arg(long)]
         no_render: bool,
+        /// Run the SLAM open loop: no GPS, rendezvous or image-matching events, no graph
+        /// exchange (the comparison run of Fig. 7).
+        #[arg(long)]
+        open_loop: bool,
         /// Renderer backend: vulkan, gl or any (default: HETSIM_BACKEND, else any).
         #[arg(long)]
         backend: Option<String>,
@@ -190,6 +194,7 @@ fn real_main() -> Result<()> {
             record,
             dump_frames,
             no_render,
+            open_loop,
             backend,
             adapter,
         } => {
@@ -207,6 +212,7 @@ fn real_main() -> Result<()> {
                 record.as_deref(),
                 render,
                 dump_frames.then_some((None, None)),
+                open_loop,
             )?;
         }
         Cmd::Frames {
@@ -248,6 +254,7 @@ fn real_main() -> Result<()> {
                 None,
                 Some(hetsim_render::RenderOptions { backend, adapter }),
                 Some((Some((from, to)), list)),
+                false,
             )?;
         }
         Cmd::Localize {
@@ -707,6 +714,7 @@ fn execute(
     record: Option<&std::path::Path>,
     render: Option<hetsim_render::RenderOptions>,
     dump: Option<DumpSpec>,
+    open_loop: bool,
 ) -> Result<()> {
     let bar = progress_bar(&loaded.file.name);
     let start = wall_clock();
@@ -732,6 +740,7 @@ fn execute(
         render,
         dump: dumper.as_mut(),
         frames_only,
+        open_loop,
     };
     let result = run(
         loaded,
@@ -867,7 +876,7 @@ fn localize(
                     duration_secs: None,
                 },
             )?;
-            execute(&loaded, Some(&dir), None, Some(render.clone()), None)?;
+            execute(&loaded, Some(&dir), None, Some(render.clone()), None, false)?;
         }
         let metrics: serde_json::Value = serde_json::from_slice(
             &std::fs::read(dir.join("metrics.json"))

@@ -21,6 +21,7 @@ pub mod record;
 pub mod regress;
 pub mod report;
 mod run;
+pub mod slam;
 mod stacks;
 pub mod sweep;
 pub mod team;

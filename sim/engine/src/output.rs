@@ -110,6 +110,39 @@ pub fn write_run(
     if !result.map_points.is_empty() {
         files.push(("map.ply".to_string(), ply(&result.map_points)));
     }
+    // The SLAM's global level per robot: sub-map origins with covariance, and the events.
+    for (robot, report) in &result.slam {
+        let origins: Vec<serde_json::Value> = report
+            .origins
+            .iter()
+            .map(|(t, p, cov)| {
+                let q = p.rotation;
+                serde_json::json!({
+                    "time_s": *t as f64 * 1e-9,
+                    "position_m": [p.translation.x, p.translation.y, p.translation.z],
+                    "quaternion_xyzw": [q.i, q.j, q.k, q.w],
+                    "covariance": cov.chunks(6).map(<[f64]>::to_vec).collect::<Vec<_>>(),
+                })
+            })
+            .collect();
+        let events = result
+            .metrics
+            .slam
+            .as_ref()
+            .and_then(|m| m.robots.get(robot))
+            .map(|r| r.events.clone())
+            .unwrap_or_default();
+        let doc = serde_json::json!({
+            "robot": robot,
+            "covariance_convention": "right perturbation (dx, dy, dz, rx, ry, rz) of world_from_origin, 6x6",
+            "origins": origins,
+            "events": events,
+        });
+        files.push((
+            format!("slam/{robot}-graph.json"),
+            serde_json::to_vec_pretty(&doc).expect("JSON encodes"),
+        ));
+    }
     // Fig. 7 of seed 000 per robot: VO, open-loop and event-corrected SLAM against truth.
     for (robot, truth) in &result.truth {
         let kinds = ["vo", "slam-open", "slam"];

@@ -70,6 +70,9 @@ fn schema_for(name: &str) -> Value {
         "hetsim.Rendezvous" => {
             json!({"timestamp": time, "frame_id": string, "other": string, "pose": pose, "sigma_m": number, "sigma_rad": number})
         }
+        "hetsim.ImageMatch" => {
+            json!({"timestamp": time, "frame_id": string, "other": string, "other_stamp": time, "pose": pose, "sigma_m": number, "sigma_rad": number})
+        }
         "foxglove.CompressedImage" => {
             json!({"timestamp": time, "frame_id": string, "data": {"type": "string", "contentEncoding": "base64"}, "format": string})
         }
@@ -243,6 +246,7 @@ impl Recorder {
                 self.write(&topic, "hetsim.ChildTracks", t, &json!({"timestamp": stamp(t), "frame_id": "world", "tracks": tracks}));
             }
             SensorMsg::Rendezvous(m) => self.write(&topic, "hetsim.Rendezvous", t, &json!({"timestamp": stamp(t), "frame_id": frame, "other": m.other, "pose": pose_json(&m.relative), "sigma_m": m.sigma_m, "sigma_rad": m.sigma_rad})),
+            SensorMsg::ImageMatch(m) => self.write(&topic, "hetsim.ImageMatch", t, &json!({"timestamp": stamp(t), "frame_id": frame, "other": m.other, "other_stamp": stamp(m.other_stamp_ns), "pose": pose_json(&m.relative), "sigma_m": m.sigma_m, "sigma_rad": m.sigma_rad})),
             SensorMsg::Image(m) => {
                 let mut png = Vec::new();
                 let img = image::RgbImage::from_raw(m.width, m.height, m.rgb.clone()).expect("image size matches its pixels");

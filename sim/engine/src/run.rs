@@ -75,6 +75,9 @@ pub struct Metrics {
     /// A coverage mission run in lockstep: what the team did, against ground truth.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub team: Option<crate::team::TeamMetrics>,
+    /// SLAM stacks: NEES of the robot pose, events, joint accuracy.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub slam: Option<crate::slam::SlamMetrics>,
 }
 
 /// Everything a run produced, before it is written.
@@ -93,6 +96,8 @@ pub struct RunResult {
     pub team: Option<crate::team::TeamOutcome>,
     /// The SLAM stacks' mapped points in the world frame: (robot, sub-map, point).
     pub map_points: Vec<(String, usize, [f64; 3])>,
+    /// The SLAM stacks' reports, by robot.
+    pub slam: Vec<(String, hetsim_msgs::SlamReport)>,
 }
 
 /// A trajectory a robot stack estimated.
@@ -130,6 +135,8 @@ pub struct RunOptions<'a> {
     pub dump: Option<&'a mut FrameDump>,
     /// Render only the frames the dump wants (for `hetsim frames`).
     pub frames_only: bool,
+    /// SLAM stacks run open loop (no events, no graph exchange).
+    pub open_loop: bool,
 }
 
 /// Why a run stopped.
@@ -176,6 +183,7 @@ fn run_on_worker(
         render,
         mut dump,
         frames_only,
+        open_loop,
     } = options;
     let clock = scenario.clock;
     let streams = Streams::new(scenario.seed);
@@ -186,7 +194,7 @@ fn run_on_worker(
         .map(|r| {
             let seed =
                 rand::Rng::next_u64(&mut streams.stream(&format!("{}/vo/ransac", r.spec.name)));
-            build_stack(scenario, r, seed)
+            build_stack(scenario, r, seed, open_loop)
         })
         .collect();
     let names: Vec<String> = scenario
@@ -213,6 +221,7 @@ fn run_on_worker(
         counts: BTreeMap::new(),
     };
     let mut truth: Vec<Vec<(u64, Pose)>> = vec![Vec::new(); n];
+    let mut keyframes_seen = vec![0usize; n];
     let cmd_topics: Vec<String> = names.iter().map(|r| format!("{r}/cmd")).collect();
     let truth_topics: Vec<String> = names.iter().map(|r| format!("{r}/truth")).collect();
     let radio_topics: Vec<String> = names.iter().map(|r| format!("{r}/radio")).collect();
@@ -268,6 +277,16 @@ fn run_on_worker(
                 cmd
             })
             .collect();
+        // Key frames the stacks made, with the true pose then, for the emulated image matcher.
+        for (i, stack) in stacks.iter().enumerate() {
+            for &stamp in &stack.keyframes()[keyframes_seen[i]..] {
+                let k = truth[i].partition_point(|(t, _)| *t <= stamp);
+                if let Some((_, pose)) = k.checked_sub(1).map(|k| truth[i][k]) {
+                    sensors.add_keyframe(i, stamp, pose);
+                }
+            }
+            keyframes_seen[i] = stack.keyframes().len();
+        }
         // 2. commands -> actuators; outgoing radio messages -> the radio
         let positions: Vec<[f64; 3]> = (0..n)
             .map(|i| physics.pose(i).translation.vector.into())
@@ -395,8 +414,18 @@ fn run_on_worker(
             crate::trajectory::evaluate(&e.poses, &truth[i]),
         );
     }
+    let slam: Vec<(String, hetsim_msgs::SlamReport)> = stacks
+        .iter()
+        .zip(&names)
+        .filter_map(|(s, n)| Some((n.clone(), s.slam_report()?)))
+        .collect();
+    let named_truth: Vec<(String, Vec<(u64, Pose)>)> = names.into_iter().zip(truth).collect();
+    if !slam.is_empty() {
+        metrics.slam = Some(crate::slam::evaluate(&slam, &estimates, &named_truth));
+    }
     Ok(RunResult {
-        truth: names.into_iter().zip(truth).collect(),
+        truth: named_truth,
+        slam,
         metrics,
         digest: post.digest,
         adapter,
@@ -451,6 +480,7 @@ fn metrics(
         comms: CommsStats::default(),
         estimates: BTreeMap::new(),
         team: None,
+        slam: None,
         coverage: scenario
             .file
             .coverage

@@ -8,8 +8,13 @@ use hetsim_scene::{DriveKind, MissionSpec, ResolvedRobot, Scenario, Sensor, Stee
 
 /// The stack for a robot: the waypoint followers of `hetsim-pilot` on ground truth, and, for
 /// robots with a stereo bench, stereo visual odometry and the local level of the SLAM beside
-/// them (`hetsim-slam`).
-pub fn build_stack(scenario: &Scenario, robot: &ResolvedRobot, seed: u64) -> Box<dyn RobotStack> {
+/// them (`hetsim-slam`), open loop (no events, no radio) when `open_loop`.
+pub fn build_stack(
+    scenario: &Scenario,
+    robot: &ResolvedRobot,
+    seed: u64,
+    open_loop: bool,
+) -> Box<dyn RobotStack> {
     let pilot = build_pilot(scenario, robot);
     let stereo = robot.model.sensors.iter().find_map(|s| match s {
         Sensor::StereoCamera {
@@ -49,6 +54,7 @@ pub fn build_stack(scenario: &Scenario, robot: &ResolvedRobot, seed: u64) -> Box
                 DriveKind::Helicopter => hetsim_slam::stack::SlamParams::aerial(),
                 _ => hetsim_slam::stack::SlamParams::ground(),
             };
+            params.cooperative = !open_loop;
             // GPS fixes are events only for robots that carry a receiver.
             params.gps_event_period_s = None;
             for s in &robot.model.sensors {
@@ -59,6 +65,7 @@ pub fn build_stack(scenario: &Scenario, robot: &ResolvedRobot, seed: u64) -> Box
             }
             Box::new(hetsim_slam::stack::SlamStack::new(
                 pilot,
+                &robot.spec.name,
                 name,
                 hetsim_vision::stereo::Bench {
                     camera,

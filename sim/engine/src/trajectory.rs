@@ -26,16 +26,45 @@ pub struct Accuracy {
     pub final_error_m: f64,
 }
 
+/// An estimated trajectory and its robot's truth, each `(stamp_ns, world_from_body)`.
+pub type Paired<'a> = (&'a [(u64, Pose)], &'a [(u64, Pose)]);
+
 /// Pairs by stamp and evaluates.
 pub fn evaluate(estimate: &[(u64, Pose)], truth: &[(u64, Pose)]) -> Accuracy {
-    let by_stamp: BTreeMap<u64, &Pose> = truth.iter().map(|(t, p)| (*t, p)).collect();
-    let pairs: Vec<(u64, &Pose, &Pose)> = estimate
-        .iter()
-        .filter_map(|(t, e)| by_stamp.get(t).map(|g| (*t, e, *g)))
-        .collect();
-    let est: Vec<Vector3<f64>> = pairs.iter().map(|p| p.1.translation.vector).collect();
-    let gt: Vec<Vector3<f64>> = pairs.iter().map(|p| p.2.translation.vector).collect();
-    let length_m = gt.windows(2).map(|w| (w[1] - w[0]).norm()).sum();
+    evaluate_joint(&[(estimate, truth)])
+}
+
+/// Evaluates several robots' trajectories together (each paired with its own truth): one
+/// alignment for all of them, RPE over every robot's pairs; `length_m` is their sum and
+/// `final_error_m` the largest final error.
+pub fn evaluate_joint(parts: &[Paired<'_>]) -> Accuracy {
+    let mut est = Vec::new();
+    let mut gt = Vec::new();
+    let mut length_m = 0.0;
+    let mut sq = Vec::new();
+    let mut final_error_m = f64::NAN;
+    for (estimate, truth) in parts {
+        let by_stamp: BTreeMap<u64, &Pose> = truth.iter().map(|(t, p)| (*t, p)).collect();
+        let pairs: Vec<(u64, &Pose, &Pose)> = estimate
+            .iter()
+            .filter_map(|(t, e)| by_stamp.get(t).map(|g| (*t, e, *g)))
+            .collect();
+        let e: Vec<Vector3<f64>> = pairs.iter().map(|p| p.1.translation.vector).collect();
+        let g: Vec<Vector3<f64>> = pairs.iter().map(|p| p.2.translation.vector).collect();
+        length_m += g.windows(2).map(|w| (w[1] - w[0]).norm()).sum::<f64>();
+        for (i, a) in pairs.iter().enumerate() {
+            if let Some(b) = pairs[i..].iter().find(|b| b.0 >= a.0 + 1_000_000_000) {
+                let rel_est = a.1.inverse() * b.1;
+                let rel_gt = a.2.inverse() * b.2;
+                sq.push((rel_est.translation.vector - rel_gt.translation.vector).norm_squared());
+            }
+        }
+        if let (Some(a), Some(b)) = (e.last(), g.last()) {
+            final_error_m = final_error_m.max((a - b).norm());
+        }
+        est.extend(e);
+        gt.extend(g);
+    }
     let ate_m = match hetsim_vision::vo::kabsch(&est, &gt) {
         Some(align) => (est
             .iter()
@@ -46,25 +75,13 @@ pub fn evaluate(estimate: &[(u64, Pose)], truth: &[(u64, Pose)]) -> Accuracy {
             .sqrt(),
         None => f64::NAN,
     };
-    let mut sq = Vec::new();
-    for (i, a) in pairs.iter().enumerate() {
-        if let Some(b) = pairs[i..].iter().find(|b| b.0 >= a.0 + 1_000_000_000) {
-            let rel_est = a.1.inverse() * b.1;
-            let rel_gt = a.2.inverse() * b.2;
-            sq.push((rel_est.translation.vector - rel_gt.translation.vector).norm_squared());
-        }
-    }
     let rpe_1s_m = if sq.is_empty() {
         f64::NAN
     } else {
         (sq.iter().sum::<f64>() / sq.len() as f64).sqrt()
     };
-    let final_error_m = est
-        .last()
-        .zip(gt.last())
-        .map_or(f64::NAN, |(e, g)| (e - g).norm());
     Accuracy {
-        poses: pairs.len(),
+        poses: est.len(),
         length_m,
         ate_m,
         rpe_1s_m,

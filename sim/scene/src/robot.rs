@@ -322,6 +322,26 @@ pub enum Sensor {
         /// Relative yaw noise, degrees.
         sigma_deg: f64,
     },
+    /// Emulates the seed's image-to-image matching (Section V): when this robot's frame
+    /// overlaps a key frame of another robot (its body within `range_m` horizontally of the
+    /// key frame's position, the key frame at least `min_age_s` old), it measures the relative
+    /// pose between them once per key frame.
+    ImageMatch {
+        /// Unique on the robot.
+        name: String,
+        /// Attempts per second.
+        rate_hz: f64,
+        /// Mounting pose (unused by the emulation; kept for the frame tree).
+        mount: Mount,
+        /// Largest horizontal distance to the key frame's position, metres.
+        range_m: f64,
+        /// Youngest key frame considered, seconds.
+        min_age_s: f64,
+        /// Relative position noise, metres (each axis).
+        sigma_m: f64,
+        /// Relative attitude noise, degrees (each axis).
+        sigma_deg: f64,
+    },
     /// A planar laser scanner.
     Laser {
         /// Unique on the robot.
@@ -373,6 +393,7 @@ impl Sensor {
             Sensor::WheelOdometry { .. } => "wheel_odometry",
             Sensor::Imu { .. } => "imu",
             Sensor::Rendezvous { .. } => "rendezvous",
+            Sensor::ImageMatch { .. } => "image_match",
         }
     }
 
@@ -388,7 +409,8 @@ impl Sensor {
             | Sensor::ChildTracker { name, .. }
             | Sensor::WheelOdometry { name, .. }
             | Sensor::Imu { name, .. }
-            | Sensor::Rendezvous { name, .. } => name,
+            | Sensor::Rendezvous { name, .. }
+            | Sensor::ImageMatch { name, .. } => name,
         }
     }
 
@@ -404,7 +426,8 @@ impl Sensor {
             | Sensor::ChildTracker { rate_hz, .. }
             | Sensor::WheelOdometry { rate_hz, .. }
             | Sensor::Imu { rate_hz, .. }
-            | Sensor::Rendezvous { rate_hz, .. } => *rate_hz,
+            | Sensor::Rendezvous { rate_hz, .. }
+            | Sensor::ImageMatch { rate_hz, .. } => *rate_hz,
         }
     }
 
@@ -420,7 +443,8 @@ impl Sensor {
             | Sensor::ChildTracker { mount, .. }
             | Sensor::WheelOdometry { mount, .. }
             | Sensor::Imu { mount, .. }
-            | Sensor::Rendezvous { mount, .. } => mount,
+            | Sensor::Rendezvous { mount, .. }
+            | Sensor::ImageMatch { mount, .. } => mount,
         }
     }
 }
@@ -718,6 +742,18 @@ impl RobotModel {
                 } => {
                     c.positive(&at("range_m"), *range_m)?;
                     c.range(&at("fov_deg"), *fov_deg, 1e-3, 360.0)?;
+                    c.range(&at("sigma_m"), *sigma_m, 0.0, 100.0)?;
+                    c.range(&at("sigma_deg"), *sigma_deg, 0.0, 180.0)?;
+                }
+                Sensor::ImageMatch {
+                    range_m,
+                    min_age_s,
+                    sigma_m,
+                    sigma_deg,
+                    ..
+                } => {
+                    c.positive(&at("range_m"), *range_m)?;
+                    c.range(&at("min_age_s"), *min_age_s, 0.0, 1e6)?;
                     c.range(&at("sigma_m"), *sigma_m, 0.0, 100.0)?;
                     c.range(&at("sigma_deg"), *sigma_deg, 0.0, 180.0)?;
                 }

@@ -2,8 +2,8 @@
 
 use hetsim_core::{SimClock, SimRng, Streams};
 use hetsim_msgs::{
-    pose_from_xyz_rpy, wrap_angle, yaw_of, ChildTracks, CompassReading, GpsFix, ImuSample,
-    LaserScan, Pose, Rendezvous, SensorMsg, Track, WheelOdometry,
+    pose_from_xyz_rpy, wrap_angle, yaw_of, ChildTracks, CompassReading, GpsFix, ImageMatch,
+    ImuSample, LaserScan, Pose, Rendezvous, SensorMsg, Track, WheelOdometry,
 };
 use hetsim_physics::Physics;
 use hetsim_scene::{Mount, Scenario, Sensor};
@@ -39,6 +39,10 @@ enum State {
     Gps {
         next: usize,
     },
+    /// Key frames already matched: `(robot, stamp)`.
+    ImageMatch {
+        used: std::collections::BTreeSet<(usize, u64)>,
+    },
 }
 
 struct Instance {
@@ -58,6 +62,8 @@ pub struct SensorSuite {
     models: Vec<String>,
     heights: Vec<f64>,
     clock: SimClock,
+    /// Key frames the robots' stacks made: `(robot, stamp, true world_from_body)`.
+    keyframes: Vec<(usize, u64, Pose)>,
 }
 
 fn mount_pose(m: &Mount) -> Pose {
@@ -109,6 +115,9 @@ impl SensorSuite {
                         history: Vec::new(),
                     },
                     Sensor::Gps { .. } => State::Gps { next: 0 },
+                    Sensor::ImageMatch { .. } => State::ImageMatch {
+                        used: Default::default(),
+                    },
                     _ => State::Plain,
                 };
                 sensors.push(Instance {
@@ -140,7 +149,14 @@ impl SensorSuite {
                 .map(|r| r.model.body.height_m)
                 .collect(),
             clock,
+            keyframes: Vec::new(),
         }
+    }
+
+    /// Registers a key frame of `robot`'s stack: its stamp and the robot's true pose then,
+    /// for the emulated image matcher.
+    pub fn add_keyframe(&mut self, robot: usize, stamp_ns: u64, world_from_body: Pose) {
+        self.keyframes.push((robot, stamp_ns, world_from_body));
     }
 
     /// Number of sensors.
@@ -197,6 +213,7 @@ impl SensorSuite {
 
     fn measure(&mut self, k: usize, physics: &Physics, stamp_ns: u64) -> Vec<SensorMsg> {
         let names = &self.names;
+        let keyframes = &self.keyframes;
         let models = &self.models;
         let heights = &self.heights;
         let s = &mut self.sensors[k];
@@ -420,6 +437,59 @@ impl SensorSuite {
                     });
                 }
                 seen.into_iter().map(SensorMsg::Rendezvous).collect()
+            }
+            (
+                Sensor::ImageMatch {
+                    range_m,
+                    min_age_s,
+                    sigma_m,
+                    sigma_deg,
+                    ..
+                },
+                State::ImageMatch { used },
+            ) => {
+                // The nearest unmatched key frame of another robot under this one, old enough.
+                let here = world_from_body.translation.vector;
+                let min_age_ns = (min_age_s * 1e9) as u64;
+                let best = keyframes
+                    .iter()
+                    .filter(|(r, t, _)| {
+                        *r != s.robot
+                            && t.saturating_add(min_age_ns) <= stamp_ns
+                            && !used.contains(&(*r, *t))
+                    })
+                    .map(|(r, t, p)| {
+                        let d = (p.translation.vector - here).xy().norm();
+                        (d, *r, *t, *p)
+                    })
+                    .filter(|(d, ..)| *d <= *range_m)
+                    .min_by(|a, b| a.0.total_cmp(&b.0));
+                let Some((_, other, other_stamp_ns, kf)) = best else {
+                    return Vec::new();
+                };
+                used.insert((other, other_stamp_ns));
+                let truth = world_from_body.inverse() * kf;
+                let t = truth.translation.vector;
+                let sr = sigma_deg.to_radians();
+                let noisy_t = Vector3::new(
+                    t.x + normal(&mut s.rng, *sigma_m),
+                    t.y + normal(&mut s.rng, *sigma_m),
+                    t.z + normal(&mut s.rng, *sigma_m),
+                );
+                let rot_noise = UnitQuaternion::from_scaled_axis(Vector3::new(
+                    normal(&mut s.rng, sr),
+                    normal(&mut s.rng, sr),
+                    normal(&mut s.rng, sr),
+                ));
+                vec![SensorMsg::ImageMatch(ImageMatch {
+                    stamp_ns,
+                    sensor,
+                    other: names[other].clone(),
+                    other_stamp_ns,
+                    relative: Pose::from_parts(noisy_t.into(), truth.rotation * rot_noise),
+                    sigma_m: *sigma_m,
+                    sigma_rad: sr,
+                })]
             }
             _ => Vec::new(),
         }

@@ -1,0 +1,202 @@
+//! The SLAM stacks' reports against ground truth: the NEES of the robot pose, what each event
+//! did to the robot's pose error, and the team's joint accuracy.
+
+use crate::trajectory::{evaluate_joint, Accuracy, Paired};
+use crate::Estimate;
+use hetsim_msgs::{Pose, SlamReport};
+use nalgebra::{Matrix6, Vector6};
+use serde::Serialize;
+use std::collections::BTreeMap;
+
+/// One event, judged against the truth at its frame.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct EventMetrics {
+    /// `gps`, `rendezvous` or `image_match`.
+    pub kind: String,
+    /// When, seconds.
+    pub time_s: f64,
+    /// The other robot (empty for GPS).
+    pub other: String,
+    /// Position error of the robot's estimate just before the event, metres.
+    pub error_before_m: f64,
+    /// And just after the graph was optimized with it.
+    pub error_after_m: f64,
+    /// Altitude error before, metres (absolute).
+    pub altitude_error_before_m: f64,
+    /// Altitude error after, metres (absolute).
+    pub altitude_error_after_m: f64,
+}
+
+/// One robot's SLAM figures.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct RobotSlam {
+    /// Mean normalized estimation error squared of the `slam` poses (6 degrees of freedom:
+    /// 6 for a consistent estimate), over `nees_poses` poses.
+    pub nees_mean: f64,
+    /// Poses with truth and covariance.
+    pub nees_poses: usize,
+    /// Sub-maps built.
+    pub submaps: usize,
+    /// The events, in order.
+    pub events: Vec<EventMetrics>,
+    /// The stack's counters.
+    pub counters: BTreeMap<String, u64>,
+}
+
+/// The SLAM section of `metrics.json`.
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct SlamMetrics {
+    /// Per robot.
+    pub robots: BTreeMap<String, RobotSlam>,
+    /// All robots together (one alignment), by estimate kind (`slam`, `slam-open`, `vo`).
+    pub joint: BTreeMap<String, Accuracy>,
+}
+
+/// The error `Log(T̂⁻¹ T)` in the graph's convention (translation, rotation vector).
+fn error(estimate: &Pose, truth: &Pose) -> Vector6<f64> {
+    let e = estimate.inverse() * truth;
+    let r = e.rotation.scaled_axis();
+    Vector6::new(
+        e.translation.x,
+        e.translation.y,
+        e.translation.z,
+        r.x,
+        r.y,
+        r.z,
+    )
+}
+
+/// Judges the reports (robot name, report) against the robots' truth.
+pub fn evaluate(
+    reports: &[(String, SlamReport)],
+    estimates: &[Estimate],
+    truth: &[(String, Vec<(u64, Pose)>)],
+) -> SlamMetrics {
+    let truth_of = |robot: &str| -> BTreeMap<u64, Pose> {
+        truth
+            .iter()
+            .find(|(n, _)| n == robot)
+            .map(|(_, t)| t.iter().copied().collect())
+            .unwrap_or_default()
+    };
+    let mut robots = BTreeMap::new();
+    for (robot, report) in reports {
+        let truth = truth_of(robot);
+        let slam = estimates
+            .iter()
+            .find(|e| e.kind == "slam" && e.robot == *robot);
+        let mut nees = Vec::new();
+        if let Some(slam) = slam {
+            for ((stamp, pose), cov) in slam.poses.iter().zip(&report.covariances) {
+                let (Some(t), Some(inv)) = (
+                    truth.get(stamp),
+                    Matrix6::from_column_slice(cov).try_inverse(),
+                ) else {
+                    continue;
+                };
+                let e = error(pose, t);
+                nees.push((e.transpose() * inv * e)[0]);
+            }
+        }
+        let events = report
+            .events
+            .iter()
+            .filter_map(|ev| {
+                let t = truth.get(&ev.stamp_ns)?;
+                let p = t.translation.vector;
+                Some(EventMetrics {
+                    kind: ev.kind.clone(),
+                    time_s: ev.stamp_ns as f64 * 1e-9,
+                    other: ev.other.clone(),
+                    error_before_m: (ev.before.translation.vector - p).norm(),
+                    error_after_m: (ev.after.translation.vector - p).norm(),
+                    altitude_error_before_m: (ev.before.translation.z - p.z).abs(),
+                    altitude_error_after_m: (ev.after.translation.z - p.z).abs(),
+                })
+            })
+            .collect();
+        robots.insert(
+            robot.clone(),
+            RobotSlam {
+                nees_mean: nees.iter().sum::<f64>() / nees.len().max(1) as f64,
+                nees_poses: nees.len(),
+                submaps: report.origins.len(),
+                events,
+                counters: report.counters.clone(),
+            },
+        );
+    }
+    let mut joint = BTreeMap::new();
+    if reports.len() > 1 {
+        for kind in ["slam", "slam-open", "vo"] {
+            let parts: Vec<Paired<'_>> = estimates
+                .iter()
+                .filter(|e| e.kind == kind)
+                .filter_map(|e| {
+                    let t = &truth.iter().find(|(n, _)| *n == e.robot)?.1;
+                    Some((e.poses.as_slice(), t.as_slice()))
+                })
+                .collect();
+            if parts.len() > 1 {
+                joint.insert(kind.to_string(), evaluate_joint(&parts));
+            }
+        }
+    }
+    SlamMetrics { robots, joint }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use hetsim_msgs::pose_from_xyz_rpy;
+
+    /// An estimate offset from the truth by exactly its standard deviation on one axis has a
+    /// NEES of 1 at every pose; an event that halves the error is reported as such.
+    #[test]
+    fn nees_and_event_errors_are_computed_from_the_truth() {
+        let truth: Vec<(u64, Pose)> = (0..10)
+            .map(|k| {
+                (
+                    k * 100,
+                    pose_from_xyz_rpy([k as f64, 0.0, 2.0], [0.0, 0.0, 0.3]),
+                )
+            })
+            .collect();
+        let shifted = |d: f64| -> Vec<(u64, Pose)> {
+            truth
+                .iter()
+                .map(|(t, p)| (*t, p * pose_from_xyz_rpy([0.0, d, 0.0], [0.0; 3])))
+                .collect()
+        };
+        let mut cov = Matrix6::<f64>::identity() * 0.01;
+        cov[(1, 1)] = 0.04;
+        let report = SlamReport {
+            covariances: vec![cov.as_slice().to_vec(); 10],
+            events: vec![hetsim_msgs::SlamEvent {
+                kind: "image_match".into(),
+                stamp_ns: 500,
+                other: "b".into(),
+                before: truth[5].1 * pose_from_xyz_rpy([0.0, 0.0, 1.0], [0.0; 3]),
+                after: truth[5].1 * pose_from_xyz_rpy([0.0, 0.0, 0.5], [0.0; 3]),
+            }],
+            ..SlamReport::default()
+        };
+        let estimates = vec![Estimate {
+            kind: "slam".into(),
+            robot: "a".into(),
+            poses: shifted(0.2),
+        }];
+        let m = evaluate(
+            &[("a".into(), report)],
+            &estimates,
+            &[("a".into(), truth.clone())],
+        );
+        let a = &m.robots["a"];
+        assert_eq!(a.nees_poses, 10);
+        assert!((a.nees_mean - 1.0).abs() < 1e-9, "{}", a.nees_mean);
+        let e = &a.events[0];
+        assert!((e.altitude_error_before_m - 1.0).abs() < 1e-9);
+        assert!((e.altitude_error_after_m - 0.5).abs() < 1e-9);
+        assert!(m.joint.is_empty(), "one robot: no joint figures");
+    }
+}
