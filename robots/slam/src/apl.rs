@@ -1,5 +1,6 @@
 //! Anchored Plücker lines (seed Section IV, Eqs. 7-19): the geometry and its Jacobians.
-//! Not yet part of the filter.
+//! Not yet part of the filter (the back-projection carries its Jacobians for the initial
+//! covariance a filter needs).
 //!
 //! An APL is the 9-vector `A = (p0, n, v)`: the anchor `p0` (the optical centre when the line
 //! was first seen), the moment `n = (p - p0) × v` of the line about the anchor (normal to the
@@ -155,6 +156,73 @@ pub fn back_project(
     a
 }
 
+/// Jacobians of [`back_project`] with respect to the robot position (9 x 3), quaternion
+/// (9 x 4), image line (9 x 3) and prior `β` (9 x 2): what the filter needs for a new line's
+/// covariance.
+pub struct BackProjection {
+    /// The line.
+    pub a: Apl,
+    /// ∂A/∂p.
+    pub d_p: SMatrix<f64, 9, 3>,
+    /// ∂A/∂q.
+    pub d_q: SMatrix<f64, 9, 4>,
+    /// ∂A/∂l.
+    pub d_l: SMatrix<f64, 9, 3>,
+    /// ∂A/∂β.
+    pub d_beta: SMatrix<f64, 9, 2>,
+}
+
+/// [`back_project`] with its analytic Jacobians.
+pub fn back_project_with_jacobians(
+    sensor: &Sensor,
+    p: &Vector3<f64>,
+    q: &Vector4<f64>,
+    l: &Vector3<f64>,
+    beta: &Vector2<f64>,
+) -> BackProjection {
+    let a = back_project(sensor, p, q, l, beta);
+    let k_inv = plucker_intrinsic(sensor)
+        .try_inverse()
+        .expect("the Plücker intrinsic matrix of a camera is invertible");
+    let n = k_inv * l;
+    let h = n.x.hypot(n.y);
+    let nn = n.norm();
+    let e1 = Vector3::new(n.y, -n.x, 0.0) / h;
+    let e2 = n.cross(&e1) / nn;
+    // de1/dn and de2/dn.
+    let de1 = Matrix3::new(0.0, 1.0, 0.0, -1.0, 0.0, 0.0, 0.0, 0.0, 0.0) / h
+        - Vector3::new(n.y, -n.x, 0.0) * Vector3::new(n.x, n.y, 0.0).transpose() / h.powi(3);
+    let de2 = (-crate::quat::skew(&e1) + crate::quat::skew(&n) * de1) / nn
+        - n.cross(&e1) * n.transpose() / nn.powi(3);
+    let v_c = e1 * beta.x + e2 * beta.y;
+    let dv_dn = de1 * beta.x + de2 * beta.y;
+    let rc = rot(q) * sensor.r_bc;
+    let mut d_p = SMatrix::<f64, 9, 3>::zeros();
+    d_p.fixed_view_mut::<3, 3>(0, 0)
+        .copy_from(&Matrix3::identity());
+    let mut d_q = SMatrix::<f64, 9, 4>::zeros();
+    d_q.fixed_view_mut::<3, 4>(0, 0)
+        .copy_from(&d_rot_dq(q, &sensor.t_bc));
+    d_q.fixed_view_mut::<3, 4>(3, 0)
+        .copy_from(&d_rot_dq(q, &(sensor.r_bc * n)));
+    d_q.fixed_view_mut::<3, 4>(6, 0)
+        .copy_from(&d_rot_dq(q, &(sensor.r_bc * v_c)));
+    let mut d_l = SMatrix::<f64, 9, 3>::zeros();
+    d_l.fixed_view_mut::<3, 3>(3, 0).copy_from(&(rc * k_inv));
+    d_l.fixed_view_mut::<3, 3>(6, 0)
+        .copy_from(&(rc * dv_dn * k_inv));
+    let mut d_beta = SMatrix::<f64, 9, 2>::zeros();
+    d_beta.fixed_view_mut::<3, 1>(6, 0).copy_from(&(rc * e1));
+    d_beta.fixed_view_mut::<3, 1>(6, 1).copy_from(&(rc * e2));
+    BackProjection {
+        a,
+        d_p,
+        d_q,
+        d_l,
+        d_beta,
+    }
+}
+
 /// Eq. 13: the Euclidean points at abscissas `t` along the line, measured from the point of
 /// the line closest to the anchor.
 pub fn point_at(a: &Apl, t: f64) -> Vector3<f64> {
@@ -306,6 +374,53 @@ mod tests {
                 &numeric(&g, &DVector::from_column_slice(lp.line.as_slice())),
                 "dd/dl",
             );
+        }
+    }
+
+    #[test]
+    fn back_projection_jacobians_match_finite_differences() {
+        let s = sensor();
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(21);
+        for _ in 0..20 {
+            let p = Vector3::new(
+                rng.random_range(-2.0..2.0),
+                rng.random_range(-2.0..2.0),
+                0.3,
+            );
+            let q = random_quat(&mut rng);
+            let l = Vector3::new(
+                rng.random_range(-1.0..1.0),
+                rng.random_range(-1.0..1.0),
+                rng.random_range(-300.0..300.0),
+            );
+            let beta = Vector2::new(rng.random_range(0.01..0.05), rng.random_range(-0.03..0.03));
+            let bp = back_project_with_jacobians(&s, &p, &q, &l, &beta);
+            let x = DVector::from_iterator(
+                12,
+                p.iter()
+                    .chain(q.iter())
+                    .chain(l.iter())
+                    .chain(beta.iter())
+                    .copied(),
+            );
+            let f = |x: &DVector<f64>| {
+                let a = back_project(
+                    &s,
+                    &Vector3::new(x[0], x[1], x[2]),
+                    &Vector4::new(x[3], x[4], x[5], x[6]),
+                    &Vector3::new(x[7], x[8], x[9]),
+                    &Vector2::new(x[10], x[11]),
+                );
+                DVector::from_column_slice(a.as_slice())
+            };
+            let num = numeric(&f, &x);
+            let mut analytic = DMatrix::zeros(9, 12);
+            analytic.view_mut((0, 0), (9, 3)).copy_from(&bp.d_p);
+            analytic.view_mut((0, 3), (9, 4)).copy_from(&bp.d_q);
+            analytic.view_mut((0, 7), (9, 3)).copy_from(&bp.d_l);
+            analytic.view_mut((0, 10), (9, 2)).copy_from(&bp.d_beta);
+            assert_close(&analytic, &num, "back-projection");
+            assert_eq!(bp.a, back_project(&s, &p, &q, &l, &beta));
         }
     }
 
