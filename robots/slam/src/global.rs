@@ -74,6 +74,16 @@ pub struct Share {
     pub links: Vec<Link>,
 }
 
+impl Share {
+    /// Whether `other` carries the same origins and constraints (its pose estimates aside).
+    fn same_constraints(&self, other: &Share) -> bool {
+        self.stamps == other.stamps
+            && self.chain == other.chain
+            && self.fixes == other.fixes
+            && self.links == other.links
+    }
+}
+
 /// A robot's view of the team's graph.
 #[derive(Clone, Debug, Default)]
 pub struct Global {
@@ -147,18 +157,20 @@ impl Global {
     }
 
     /// Another robot's part arrived (a newer one replaces the older).
-    pub fn receive(&mut self, share: Share) {
+    /// Returns whether the graph changed: a part with the constraints already known (the
+    /// periodic re-sending) changes nothing and needs no optimization.
+    pub fn receive(&mut self, share: Share) -> bool {
         if share.robot == self.own.robot {
-            return;
+            return false;
         }
-        let newer = self
-            .others
-            .get(&share.robot)
-            .is_none_or(|old| share.stamps.len() >= old.stamps.len());
-        if newer {
+        let changed = self.others.get(&share.robot).is_none_or(|old| {
+            share.stamps.len() >= old.stamps.len() && !old.same_constraints(&share)
+        });
+        if changed {
             self.others.insert(share.robot.clone(), share);
             self.rebuild();
         }
+        changed
     }
 
     /// Optimizes the joint graph; returns the final cost.

@@ -12,8 +12,8 @@
 //! small; the local level's Jacobians are the analytic ones).
 
 use nalgebra::{
-    DMatrix, DVector, Isometry3, Matrix3, Matrix6, SMatrix, Translation3, UnitQuaternion, Vector3,
-    Vector6,
+    DMatrix, DVector, Isometry3, Matrix3, Matrix6, SMatrix, SVector, Translation3, UnitQuaternion,
+    Vector3, Vector6,
 };
 
 /// A relative measurement between two nodes.
@@ -152,8 +152,8 @@ impl Graph {
         for e in &self.edges {
             let (a, b) = (self.nodes[e.from], self.nodes[e.to]);
             let r = e.residual(&a, &b);
-            let ja = numeric6(|d| e.residual(&(a * exp(d)), &b));
-            let jb = numeric6(|d| e.residual(&a, &(b * exp(d))));
+            let ja = numeric(|d| e.residual(&(a * exp(d)), &b));
+            let jb = numeric(|d| e.residual(&a, &(b * exp(d))));
             let parts = [(blocks[e.from], &ja), (blocks[e.to], &jb)];
             for (bi, ji) in parts {
                 let Some(bi) = bi else { continue };
@@ -171,15 +171,7 @@ impl Graph {
             let Some(bi) = blocks[p.node] else { continue };
             let t = self.nodes[p.node];
             let r = p.residual(&t);
-            let mut j = SMatrix::<f64, 3, 6>::zeros();
-            for k in 0..6 {
-                let mut d = Vector6::zeros();
-                d[k] = 1e-6;
-                let plus = p.residual(&(t * exp(&d)));
-                d[k] = -1e-6;
-                let minus = p.residual(&(t * exp(&d)));
-                j.set_column(k, &((plus - minus) / 2e-6));
-            }
+            let j = numeric(|d| p.residual(&(t * exp(d))));
             let gi = j.transpose() * p.info * r;
             for k in 0..6 {
                 g[bi + k] += gi[k];
@@ -246,9 +238,9 @@ impl Graph {
     }
 }
 
-/// Central differences of a 6-vector function of a 6-vector perturbation, at zero.
-fn numeric6(f: impl Fn(&Vector6<f64>) -> Vector6<f64>) -> Matrix6<f64> {
-    let mut j = Matrix6::zeros();
+/// Central differences of a function of a 6-vector perturbation, at zero.
+fn numeric<const R: usize>(f: impl Fn(&Vector6<f64>) -> SVector<f64, R>) -> SMatrix<f64, R, 6> {
+    let mut j = SMatrix::<f64, R, 6>::zeros();
     for k in 0..6 {
         let mut d = Vector6::zeros();
         d[k] = 1e-6;
@@ -268,7 +260,7 @@ pub fn compound(
     b: &Isometry3<f64>,
     cov_b: &Matrix6<f64>,
 ) -> (Isometry3<f64>, Matrix6<f64>) {
-    let j = numeric6(|d| log(&((a * b).inverse() * (a * exp(d) * b))));
+    let j = numeric(|d| log(&((a * b).inverse() * (a * exp(d) * b))));
     (a * b, j * cov_a * j.transpose() + cov_b)
 }
 
@@ -302,14 +294,7 @@ mod tests {
             truth.push(truth[k - 1] * step);
         }
         let (st, sr) = (0.02, 0.01);
-        let info = Matrix6::from_diagonal(&Vector6::new(
-            1.0 / (st * st),
-            1.0 / (st * st),
-            1.0 / (st * st),
-            1.0 / (sr * sr),
-            1.0 / (sr * sr),
-            1.0 / (sr * sr),
-        ));
+        let info = crate::global::relative_info(st, sr);
         let mut g = Graph::default();
         g.add_node(truth[0]);
         for k in 1..20 {

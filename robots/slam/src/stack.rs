@@ -601,8 +601,9 @@ impl SlamStack {
             return;
         };
         self.peers.insert(share.robot.clone());
-        g.receive(share);
-        g.optimize();
+        if g.receive(share) {
+            g.optimize();
+        }
         self.count("shares_received", 1);
     }
 
@@ -671,10 +672,9 @@ impl RobotStack for SlamStack {
                 _ => {}
             }
         }
-        let due = self
-            .last_share_ns
-            .is_some_and(|t| now_ns >= t + (self.params.share_period_s * 1e9) as u64);
-        if due || (self.last_share_ns.is_none() && !self.peers.is_empty()) {
+        let period = (self.params.share_period_s * 1e9) as u64;
+        if self.last_share_ns.is_none_or(|t| now_ns >= t + period) {
+            // Nothing goes out before a robot has been met.
             self.share(now_ns);
         }
         self.inner.step(now_ns, inbox)
