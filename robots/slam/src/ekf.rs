@@ -1,9 +1,10 @@
 //! A local EKF map (seed Section II, "Metric level"): the robot pose and inverse-depth points
 //! in the map's own frame, whose origin is the robot pose when the map was started.
 //!
-//! State: `x = (p, q, y_1, …, y_n)`, position (3) and quaternion `[w, x, y, z]` (4) of the
-//! body in the map frame, then 6 per point ([`crate::idp`]). A new map starts with the robot
-//! at the origin and zero covariance.
+//! State: `x = (p, q, y_1, …, y_n, A_1, …, A_m)`, position (3) and quaternion `[w, x, y, z]`
+//! (4) of the body in the map frame, then 6 per point ([`crate::idp`]), then 9 per anchored
+//! Plücker line ([`crate::apl`]; their updates and initialization are in [`crate::lines`]). A
+//! new map starts with the robot at the origin and zero covariance.
 //!
 //! * **Prediction** by a body motion `(Δp, δθ)` measured by stereo VO with its 6 x 6
 //!   covariance: `p ← p + R(q) Δp`, `q ← q ⊗ q(δθ)`, normalized.
@@ -15,7 +16,8 @@
 //!   from the robot's, the pixel's (`σ_pixel`) and the prior's (`σ_ρ`).
 //! * **Deletion policy**: a point is removed when it has been searched at least `min_searches`
 //!   times and found in fewer than half of them (bad appearance, occluded, or a wrong match
-//!   early on), or when its inverse depth is estimated negative (behind its anchor).
+//!   early on), or when its inverse depth is estimated negative (behind its anchor). Lines
+//!   follow the same search/found rule, and are removed when their direction vanishes.
 
 use crate::idp::{self, Idp, Projection, Sensor};
 use crate::quat::{d_normalize, d_rot_dq, from_rotation_vector, left, right, rot};
@@ -41,6 +43,8 @@ pub struct LocalMap {
     pub p: DMatrix<f64>,
     /// The points, in state order.
     pub points: Vec<PointInfo>,
+    /// The lines, in state order (after the points).
+    pub lines: Vec<crate::lines::LineInfo>,
 }
 
 /// The outcome of an update.
@@ -67,7 +71,18 @@ impl LocalMap {
             x,
             p: DMatrix::zeros(7, 7),
             points: Vec::new(),
+            lines: Vec::new(),
         }
+    }
+
+    /// Landmarks mapped: points and lines together (the seed's sub-map size counts both).
+    pub fn landmarks(&self) -> usize {
+        self.points.len() + self.lines.len()
+    }
+
+    /// Index in the state of the first line (the lines follow the points).
+    pub fn line_start(&self) -> usize {
+        7 + 6 * self.points.len()
     }
 
     /// The robot position.
@@ -201,24 +216,100 @@ impl LocalMap {
             return Some(Update::Gated(d2));
         }
         let h = Self::h_small(&pr);
-        let idx = self.indices(k);
+        self.correct(
+            &self.indices(k),
+            &DMatrix::from_column_slice(2, 13, h.as_slice()),
+            &DVector::from_column_slice(nu.as_slice()),
+            &DMatrix::from_column_slice(2, 2, s_inv.as_slice()),
+        );
+        Some(Update::Accepted)
+    }
+
+    /// The innovation covariance `H P Hᵀ + σ² I` of a measurement whose Jacobian `h`
+    /// (m x k) has non-zero columns only at the state indices `idx`.
+    pub(crate) fn innovation_covariance(
+        &self,
+        idx: &[usize],
+        h: &DMatrix<f64>,
+        sigma: f64,
+    ) -> DMatrix<f64> {
+        let k = idx.len();
+        let pss = DMatrix::from_fn(k, k, |a, b| self.p[(idx[a], idx[b])]);
+        h * pss * h.transpose() + DMatrix::identity(h.nrows(), h.nrows()) * (sigma * sigma)
+    }
+
+    /// The EKF correction by innovation `nu` with inverse innovation covariance `s_inv`, for
+    /// a measurement whose Jacobian `h` (m x k) has non-zero columns only at `idx`.
+    pub(crate) fn correct(
+        &mut self,
+        idx: &[usize],
+        h: &DMatrix<f64>,
+        nu: &DVector<f64>,
+        s_inv: &DMatrix<f64>,
+    ) {
         let n = self.x.len();
-        // P Hᵀ (n x 2) from the 13 columns.
-        let mut pht = DMatrix::zeros(n, 2);
+        let m = h.nrows();
+        // P Hᵀ (n x m) from the k columns.
+        let mut pht = DMatrix::zeros(n, m);
         for r in 0..n {
-            for c in 0..2 {
-                pht[(r, c)] = (0..13).map(|i| self.p[(r, idx[i])] * h[(c, i)]).sum();
+            for c in 0..m {
+                pht[(r, c)] = idx
+                    .iter()
+                    .enumerate()
+                    .map(|(i, &col)| self.p[(r, col)] * h[(c, i)])
+                    .sum();
             }
         }
-        let s_inv_d = DMatrix::from_column_slice(2, 2, s_inv.as_slice());
-        let gain = &pht * &s_inv_d;
-        let nu_d = DVector::from_column_slice(nu.as_slice());
-        self.x += &gain * nu_d;
+        let gain = &pht * s_inv;
+        self.x += &gain * nu;
         // P ← P - K (P Hᵀ)ᵀ, in place (the caller symmetrizes once per frame).
         self.p.gemm(-1.0, &gain, &pht.transpose(), 1.0);
         let q = self.quaternion().normalize();
         self.x.fixed_rows_mut::<4>(3).copy_from(&q);
-        Some(Update::Accepted)
+    }
+
+    /// Inserts a new landmark `y` at state index `at`, initialized from the robot pose by a
+    /// function whose Jacobian on the robot is `jr` (m x 7) and whose other inputs (pixels,
+    /// priors) add the covariance `noise` (m x m).
+    pub(crate) fn insert(
+        &mut self,
+        at: usize,
+        y: &DVector<f64>,
+        jr: &DMatrix<f64>,
+        noise: &DMatrix<f64>,
+    ) {
+        let n = self.x.len();
+        let m = y.len();
+        let cross = jr * self.p.view((0, 0), (7, n)); // m x n
+        let pyy = jr * self.p.view((0, 0), (7, 7)) * jr.transpose() + noise;
+        // The old index i goes to i, or i + m at or after `at`.
+        let new = |i: usize| if i < at { i } else { i + m };
+        let mut x = DVector::zeros(n + m);
+        let mut p = DMatrix::zeros(n + m, n + m);
+        for i in 0..n {
+            x[new(i)] = self.x[i];
+            for j in 0..n {
+                p[(new(i), new(j))] = self.p[(i, j)];
+            }
+            for a in 0..m {
+                p[(at + a, new(i))] = cross[(a, i)];
+                p[(new(i), at + a)] = cross[(a, i)];
+            }
+        }
+        x.rows_mut(at, m).copy_from(y);
+        p.view_mut((at, at), (m, m)).copy_from(&pyy);
+        self.x = x;
+        self.p = p;
+    }
+
+    /// Removes the state block of `len` entries at `start`.
+    pub(crate) fn remove_block(&mut self, start: usize, len: usize) {
+        self.x = self.x.clone().remove_rows(start, len);
+        self.p = self
+            .p
+            .clone()
+            .remove_rows(start, len)
+            .remove_columns(start, len);
     }
 
     /// Adds a point seen at `pixel`, with pixel noise `sigma_px` and the inverse-depth prior
@@ -239,32 +330,18 @@ impl LocalMap {
             pixel,
             rho_init,
         );
-        let n = self.x.len();
         let mut jr = SMatrix::<f64, 6, 7>::zeros();
         jr.fixed_view_mut::<6, 3>(0, 0).copy_from(&i.d_p);
         jr.fixed_view_mut::<6, 4>(0, 3).copy_from(&i.d_q);
-        let jr_d = DMatrix::from_column_slice(6, 7, jr.as_slice());
-        let p_r_all = self.p.view((0, 0), (7, n)).clone_owned();
-        let cross = &jr_d * &p_r_all; // 6 x n
-        let prr = self.p.view((0, 0), (7, 7)).clone_owned();
-        let mut pyy = &jr_d * prr * jr_d.transpose()
-            + DMatrix::from_column_slice(
-                6,
-                6,
-                (i.d_pixel * i.d_pixel.transpose() * (sigma_px * sigma_px)).as_slice(),
-            );
-        pyy[(5, 5)] += sigma_rho * sigma_rho;
-        let mut x = DVector::zeros(n + 6);
-        x.rows_mut(0, n).copy_from(&self.x);
-        x.rows_mut(n, 6)
-            .copy_from(&DVector::from_column_slice(i.y.as_slice()));
-        let mut p = DMatrix::zeros(n + 6, n + 6);
-        p.view_mut((0, 0), (n, n)).copy_from(&self.p);
-        p.view_mut((n, 0), (6, n)).copy_from(&cross);
-        p.view_mut((0, n), (n, 6)).copy_from(&cross.transpose());
-        p.view_mut((n, n), (6, 6)).copy_from(&pyy);
-        self.x = x;
-        self.p = p;
+        let mut noise = i.d_pixel * i.d_pixel.transpose() * (sigma_px * sigma_px);
+        noise[(5, 5)] += sigma_rho * sigma_rho;
+        // The point goes after the points, before the lines.
+        self.insert(
+            self.line_start(),
+            &DVector::from_column_slice(i.y.as_slice()),
+            &DMatrix::from_column_slice(6, 7, jr.as_slice()),
+            &DMatrix::from_column_slice(6, 6, noise.as_slice()),
+        );
         self.points.push(PointInfo {
             id,
             searched: 0,
@@ -287,17 +364,11 @@ impl LocalMap {
 
     /// Removes point `k` from the state.
     pub fn remove(&mut self, k: usize) {
-        let start = 7 + 6 * k;
-        self.x = self.x.clone().remove_rows(start, 6);
-        self.p = self
-            .p
-            .clone()
-            .remove_rows(start, 6)
-            .remove_columns(start, 6);
+        self.remove_block(7 + 6 * k, 6);
         self.points.remove(k);
     }
 
-    /// Applies the deletion policy; returns the ids removed.
+    /// Applies the deletion policy to the points and the lines; returns the ids removed.
     pub fn prune(&mut self, min_searches: u32) -> Vec<u64> {
         let mut removed = Vec::new();
         let mut k = 0;
@@ -312,6 +383,7 @@ impl LocalMap {
                 k += 1;
             }
         }
+        removed.extend(self.prune_lines(min_searches));
         removed
     }
 
@@ -324,7 +396,7 @@ impl LocalMap {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use crate::quat::tests::{assert_close, numeric};
     use hetsim_vision::Camera;
@@ -451,7 +523,7 @@ mod tests {
     }
 
     /// Normal samples by Box-Muller.
-    fn gauss(rng: &mut impl rand::Rng) -> f64 {
+    pub(crate) fn gauss(rng: &mut impl rand::Rng) -> f64 {
         let u1: f64 = rng.random_range(1e-12..1.0);
         let u2: f64 = rng.random_range(0.0..1.0);
         (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()

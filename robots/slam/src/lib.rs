@@ -2,13 +2,15 @@
 //! EKF sub-maps with inverse-depth points, and the geometry they rest on.
 //!
 //! * [`apl`]: anchored Plücker lines (Eqs. 7-19): frame transformations, un-anchoring,
-//!   projection, endpoint measurements, back-projection with the β prior, with Jacobians (not
-//!   yet in the filter);
+//!   projection, endpoint measurements, back-projection with the β prior, with Jacobians;
 //! * [`quat`]: quaternions `[w, x, y, z]` with the Jacobians the filter needs;
 //! * [`idp`]: inverse-depth points: undelayed initialization from a pixel, projection, and
 //!   their analytic Jacobians;
 //! * [`ekf`]: the local EKF map: VO prediction, gated point updates, undelayed
 //!   initialization, deletion policy;
+//! * [`lines`]: anchored Plücker lines in the local map: undelayed initialization from an
+//!   image segment with the β prior, endpoint-distance updates, segment endpoints as
+//!   abscissas outside the filter;
 //! * [`graph`]: the global level: sub-map origins, relative and GPS constraints, Gauss-Newton
 //!   loop closure, compounding with covariance;
 //! * [`global`]: the team's graph on each robot: its own part, the parts received over the
@@ -23,5 +25,6 @@ pub mod ekf;
 pub mod global;
 pub mod graph;
 pub mod idp;
+pub mod lines;
 pub mod quat;
 pub mod stack;
