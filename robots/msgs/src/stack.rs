@@ -69,6 +69,12 @@ pub trait RobotStack: Send {
         Vec::new()
     }
 
+    /// Mapped 3D segments (two endpoints) in the world frame, with the sub-map each belongs
+    /// to (a SLAM stack's lines; the engine writes them to `map.ply` as edges).
+    fn map_segments(&self) -> Vec<(usize, [[f64; 3]; 2])> {
+        Vec::new()
+    }
+
     /// Stamps of the frames the stack made key frames (a SLAM stack's sub-map origins), in
     /// order. The simulator's emulated image matcher matches other robots' frames against
     /// them.

@@ -1,6 +1,5 @@
-//! Anchored Plücker lines (seed Section IV, Eqs. 7-19): the geometry and its Jacobians.
-//! Not yet part of the filter (the back-projection carries its Jacobians for the initial
-//! covariance a filter needs).
+//! Anchored Plücker lines (seed Section IV, Eqs. 7-19): the geometry and its Jacobians; the
+//! filter's use of them is in [`crate::lines`].
 //!
 //! An APL is the 9-vector `A = (p0, n, v)`: the anchor `p0` (the optical centre when the line
 //! was first seen), the moment `n = (p - p0) × v` of the line about the anchor (normal to the

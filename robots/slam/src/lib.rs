@@ -1,5 +1,6 @@
 //! Hierarchical visual EKF-SLAM of seed `000_955784a9d1cf66bf` (Sections II-IV): local
-//! EKF sub-maps with inverse-depth points, and the geometry they rest on.
+//! EKF sub-maps with inverse-depth points and anchored Plücker lines, the team's graph of
+//! sub-map origins, and the geometry they rest on.
 //!
 //! * [`apl`]: anchored Plücker lines (Eqs. 7-19): frame transformations, un-anchoring,
 //!   projection, endpoint measurements, back-projection with the β prior, with Jacobians;
@@ -15,8 +16,8 @@
 //!   loop closure, compounding with covariance;
 //! * [`global`]: the team's graph on each robot: its own part, the parts received over the
 //!   radio, event links (rendezvous, image matching) resolved by origin stamps;
-//! * [`stack`]: the robot stack: stereo VO, the local maps in lockstep, sub-maps every 100
-//!   points;
+//! * [`stack`]: the robot stack: stereo VO, points and segments tracked in the local maps in
+//!   lockstep, sub-maps every 100 landmarks, events and the radio;
 //!
 //! Every Jacobian is checked against finite differences in the module's tests.
 

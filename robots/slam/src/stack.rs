@@ -1,7 +1,7 @@
 //! A robot stack running the local level of the hierarchical SLAM beside another stack (the
-//! waypoint pilot): stereo VO for the motion prediction, monocular point observations from
-//! the bench's left camera, and a new sub-map every `max_landmarks` points (seed Sections II
-//! and V).
+//! waypoint pilot): stereo VO for the motion prediction, monocular point and line-segment
+//! observations from the bench's left camera, and a new sub-map every `max_landmarks`
+//! landmarks (seed Sections II, IV and V).
 //!
 //! Per stereo pair:
 //! 1. stereo VO gives the left camera's motion and covariance; it is turned into the body's
@@ -11,14 +11,23 @@
 //!    searched there by ZNCC of the patch taken when it was initialized, inside the 99 %
 //!    ellipse of `S` (when `S` is small enough to search); a match updates the map unless the
 //!    Mahalanobis gate rejects it;
-//! 3. the deletion policy of [`crate::ekf`] removes unreliable points;
-//! 4. new points are initialized (undelayed, inverse depth) from Harris corners so that each
+//! 3. then the lines (seed Section V: the points' updated pose serves the segment tracker):
+//!    each line's segment is predicted into the image from its 3D endpoints, clipped to the
+//!    image, and tracked there ([`hetsim_vision::segments::track`], searching 3σ of the
+//!    innovation along its normal); the tracked segment updates the line unless the gate
+//!    rejects it, and extends its endpoints ([`crate::lines`]);
+//! 4. the deletion policy of [`crate::ekf`] removes unreliable points and lines;
+//! 5. new points are initialized (undelayed, inverse depth) from Harris corners so that each
 //!    region of a regular 3 x 3 partition of the image has at least `per_region` points;
-//! 5. when the map holds `max_landmarks` points, it is closed: the robot pose in it (mean and
-//!    covariance) becomes the relative transform to the next sub-map, whose origin is that
-//!    pose.
+//!    new lines from LSD segments longer than `min_line_px` (seed: 60 px at 1024 px wide,
+//!    scaled with the image width) that no mapped line already covers, while fewer than
+//!    `max_visible_lines` are tracked (detection runs every `line_detect_period` frames: it
+//!    is the costliest step);
+//! 6. when the map holds `max_landmarks` landmarks (points and lines together), it is
+//!    closed: the robot pose in it (mean and covariance) becomes the relative transform to
+//!    the next sub-map, whose origin is that pose.
 //!
-//! 6. events (seed Section III) start a new sub-map at the frame they happen, link its origin,
+//! 7. events (seed Section III) start a new sub-map at the frame they happen, link its origin,
 //!    and the team's graph ([`crate::global`]) is optimized:
 //!    * a GPS fix, once `gps_event_period_s` has passed since the last event, constrains the
 //!      origin's antenna position;
@@ -27,7 +36,7 @@
 //!      stamp: both robots see each other and both start a sub-map then (a full rendezvous);
 //!    * an image match (the emulated matcher found one of another robot's key frames, i.e.
 //!      sub-map origins, under this robot) links the origin to that past origin.
-//! 7. the robot's part of the graph goes to every robot it has met, over the radio, after each
+//! 8. the robot's part of the graph goes to every robot it has met, over the radio, after each
 //!    event and every `share_period_s`; parts received are merged and the graph optimized.
 //!
 //! The first sub-map's origin is the true pose at the first pair (the seed's first map is its
@@ -39,12 +48,14 @@
 use crate::ekf::{LocalMap, Update};
 use crate::global::{relative_info, Fix, Global, Link, Share};
 use crate::idp::Sensor;
+use crate::lines::LinePrior;
 use hetsim_msgs::{
     Command, Delivered, Image, ImageMatch, Outgoing, Pose, Rendezvous, RobotStack, SensorMsg,
     SlamEvent, SlamReport, StackStatus,
 };
 use hetsim_vision::harris::{detect, select_new, Corner};
 use hetsim_vision::matching::{search_ellipse, Patch};
+use hetsim_vision::segments::{self, Segment};
 use hetsim_vision::stereo::Bench;
 use hetsim_vision::vo::StereoVo;
 use hetsim_vision::Gray;
@@ -84,6 +95,20 @@ pub struct SlamParams {
     pub rendezvous_period_s: f64,
     /// The robot's part of the graph is sent at least this often, seconds.
     pub share_period_s: f64,
+    /// Lines on (`false`: points only).
+    pub lines: bool,
+    /// The prior of a new line (seed: the same for both robots).
+    pub line_prior: LinePrior,
+    /// New lines come from segments longer than this in a 1024-pixel-wide image (scaled with
+    /// the width), pixels (seed: 60).
+    pub min_line_px: f64,
+    /// New lines are detected while fewer than this many are tracked.
+    pub max_visible_lines: usize,
+    /// Segments are detected every this many frames.
+    pub line_detect_period: u32,
+    /// A line's segment goes to the map output once its distance is known to this
+    /// (relative standard deviation).
+    pub line_output_spread: f64,
 }
 
 impl SlamParams {
@@ -120,6 +145,12 @@ impl SlamParams {
             cooperative: true,
             rendezvous_period_s: 120.0,
             share_period_s: 5.0,
+            lines: true,
+            line_prior: LinePrior::seed(),
+            min_line_px: 60.0,
+            max_visible_lines: 10,
+            line_detect_period: 5,
+            line_output_spread: 0.2,
         }
     }
 }
@@ -164,6 +195,13 @@ pub struct SlamStack {
     vo_trajectory: Vec<(u64, Pose)>,
     /// Points of the closed sub-maps: `(sub-map, point in its frame)`.
     closed_points: Vec<(usize, Vector3<f64>)>,
+    /// Segments of the closed sub-maps: `(sub-map, endpoints in its frame)`.
+    closed_segments: Vec<(usize, [Vector3<f64>; 2])>,
+    /// The lines' segments in the current frame, tracked or predicted (where new ones must
+    /// not be added).
+    seen_segments: Vec<Segment>,
+    /// Stereo pairs processed.
+    frames: u64,
     /// `(stamp, sub-map, pose in the sub-map, its covariance)` of every frame.
     trajectory: Vec<(u64, usize, Pose, Matrix6<f64>)>,
     rng: Lcg,
@@ -198,6 +236,17 @@ impl rand::TryRng for Lcg {
     }
 }
 
+/// Whether the tracked segment `t` already covers the detected `d`: nearly parallel (10
+/// degrees), `d`'s midpoint within 6 pixels of `t`'s line, and overlapping along it.
+fn covers(t: &Segment, d: &Segment) -> bool {
+    let mid = [(d.a[0] + d.b[0]) / 2.0, (d.a[1] + d.b[1]) / 2.0];
+    let (s0, s1) = (t.abscissa(d.a), t.abscissa(d.b));
+    t.direction().dot(&d.direction()).abs() > 10f64.to_radians().cos()
+        && t.line_distance(mid).abs() < 6.0
+        && s0.max(s1) > 0.0
+        && s0.min(s1) < t.length()
+}
+
 impl SlamStack {
     /// SLAM for robot `robot` on the stereo camera named `stereo`, whose left optical frame
     /// is at `body_from_camera`, around `inner`.
@@ -223,6 +272,9 @@ impl SlamStack {
             next_id: 0,
             global: None,
             closed_points: Vec::new(),
+            closed_segments: Vec::new(),
+            seen_segments: Vec::new(),
+            frames: 0,
             open_origins: Vec::new(),
             pending_fix: None,
             pending_rendezvous: None,
@@ -323,6 +375,7 @@ impl SlamStack {
             }
             self.observe(&l);
         }
+        self.frames += 1;
         if let Some(fix) = self.pending_fix.take() {
             self.gps_event(&fix, stamp);
         }
@@ -343,7 +396,10 @@ impl SlamStack {
             self.link_event("image_match", link, m.relative, sigmas, stamp);
         }
         self.add_points(&l);
-        if self.map.points.len() >= self.params.max_landmarks {
+        if self.params.lines {
+            self.add_lines(&l);
+        }
+        if self.map.landmarks() >= self.params.max_landmarks {
             self.new_submap(stamp);
         }
         self.trajectory.push((
@@ -396,9 +452,121 @@ impl SlamStack {
             }
             k += 1;
         }
+        if self.params.lines {
+            self.observe_lines(img);
+        }
         self.map.symmetrize();
         for id in self.map.prune(self.params.min_searches) {
             self.patches.remove(&id);
+        }
+    }
+
+    /// The camera's pose in the local map.
+    fn camera_pose(&self) -> Pose {
+        self.map.pose() * self.body_from_camera
+    }
+
+    /// Line `j`'s segment predicted into the image and clipped to it.
+    fn predict_segment(&self, j: usize, img: &Gray) -> Option<Segment> {
+        let [p, q] = self.map.line_endpoints(j);
+        let seg = segments::project_segment(
+            &self.sensor.camera,
+            &self.camera_pose(),
+            &p.into(),
+            &q.into(),
+            0.5,
+        )?;
+        let margin = 3.0;
+        seg.clipped(
+            [margin, margin],
+            [
+                img.width as f64 - 1.0 - margin,
+                img.height as f64 - 1.0 - margin,
+            ],
+        )
+    }
+
+    /// Tracks the lines and updates the map with them.
+    fn observe_lines(&mut self, img: &Gray) {
+        let sigma = self.params.sigma_px;
+        self.seen_segments.clear();
+        for j in 0..self.map.lines.len() {
+            let Some(predicted) = self.predict_segment(j, img) else {
+                continue;
+            };
+            let tracking = segments::TrackParams::default();
+            if predicted.length() < 4.0 * tracking.spacing_px {
+                continue;
+            }
+            self.seen_segments.push(predicted);
+            let (a, b) = (Vector2::from(predicted.a), Vector2::from(predicted.b));
+            let Some(pr) = self.map.predict_line(&self.sensor, j, &a, &b, sigma) else {
+                continue;
+            };
+            let spread = pr.s[(0, 0)].max(pr.s[(1, 1)]).sqrt();
+            if spread > self.params.max_search_px {
+                continue;
+            }
+            self.map.lines[j].searched += 1;
+            let params = segments::TrackParams {
+                search_px: (3.0 * spread).clamp(3.0, tracking.search_px),
+                ..tracking
+            };
+            let Some(seen) = segments::track(img, &predicted, &params) else {
+                continue;
+            };
+            let (e1, e2) = (Vector2::from(seen.a), Vector2::from(seen.b));
+            match self.map.update_line(&self.sensor, j, &e1, &e2, sigma, 9.21) {
+                Some(Update::Accepted) => {
+                    self.map.lines[j].found += 1;
+                    self.map.extend_line(&self.sensor, j, &e1, &e2);
+                    *self.seen_segments.last_mut().expect("pushed above") = seen;
+                    self.count("line_observations_used", 1);
+                }
+                Some(Update::Gated(_)) => self.count("line_observations_gated", 1),
+                None => {}
+            }
+        }
+    }
+
+    /// New lines from detected segments that no tracked line covers.
+    fn add_lines(&mut self, img: &Gray) {
+        if self.seen_segments.len() >= self.params.max_visible_lines
+            || self.frames % self.params.line_detect_period as u64 != 1
+        {
+            return;
+        }
+        let detect = segments::DetectParams {
+            min_length: self.params.min_line_px * img.width as f64 / 1024.0,
+            ..Default::default()
+        };
+        let mut found = segments::detect(img, &detect);
+        // The longest first.
+        found.sort_by(|x, y| y.length().total_cmp(&x.length()));
+        for seg in found {
+            if self.seen_segments.len() >= self.params.max_visible_lines
+                || self.map.landmarks() >= self.params.max_landmarks
+            {
+                break;
+            }
+            if self.seen_segments.iter().any(|t| covers(t, &seg)) {
+                continue;
+            }
+            let id = self.next_id;
+            let (a, b) = (Vector2::from(seg.a), Vector2::from(seg.b));
+            let added = self.map.add_line(
+                &self.sensor,
+                &a,
+                &b,
+                self.params.sigma_px,
+                &self.params.line_prior,
+                id,
+            );
+            if added.is_some() {
+                self.next_id += 1;
+                self.seen_segments.push(seg);
+                self.count("lines_initialized", 1);
+            }
         }
     }
 
@@ -428,7 +596,7 @@ impl SlamStack {
             15.0,
         );
         for c in chosen {
-            if self.map.points.len() >= self.params.max_landmarks {
+            if self.map.landmarks() >= self.params.max_landmarks {
                 break;
             }
             let Some(patch) = Patch::at(img, c.x, c.y) else {
@@ -478,6 +646,12 @@ impl SlamStack {
                 .euclidean_points()
                 .into_iter()
                 .map(|(_, p)| (last, p)),
+        );
+        self.closed_segments.extend(
+            self.map
+                .euclidean_segments(self.params.line_output_spread)
+                .into_iter()
+                .map(|(_, e)| (last, e)),
         );
         self.global
             .as_mut()
@@ -746,6 +920,30 @@ impl RobotStack for SlamStack {
             .map(|(node, p)| {
                 let w = g.origin(node) * nalgebra::Point3::from(p);
                 (node, [w.x, w.y, w.z])
+            })
+            .collect()
+    }
+
+    fn map_segments(&self) -> Vec<(usize, [[f64; 3]; 2])> {
+        let Some(g) = self.global.as_ref() else {
+            return Vec::new();
+        };
+        let current = g.len() - 1;
+        self.closed_segments
+            .iter()
+            .copied()
+            .chain(
+                self.map
+                    .euclidean_segments(self.params.line_output_spread)
+                    .into_iter()
+                    .map(|(_, e)| (current, e)),
+            )
+            .map(|(node, e)| {
+                let w = e.map(|p| {
+                    let w = g.origin(node) * nalgebra::Point3::from(p);
+                    [w.x, w.y, w.z]
+                });
+                (node, w)
             })
             .collect()
     }

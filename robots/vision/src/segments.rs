@@ -74,6 +74,34 @@ impl Segment {
         let d = self.direction();
         [self.a[0] + s * d.x, self.a[1] + s * d.y]
     }
+
+    /// The part of the segment inside the rectangle `[min, max]` (pixels), keeping its
+    /// direction (Liang-Barsky); `None` when no part is inside.
+    pub fn clipped(&self, min: [f64; 2], max: [f64; 2]) -> Option<Segment> {
+        let d = [self.b[0] - self.a[0], self.b[1] - self.a[1]];
+        let (mut t0, mut t1) = (0.0f64, 1.0f64);
+        for i in 0..2 {
+            for (p, q) in [(-d[i], self.a[i] - min[i]), (d[i], max[i] - self.a[i])] {
+                if p == 0.0 {
+                    if q < 0.0 {
+                        return None;
+                    }
+                } else if p < 0.0 {
+                    t0 = t0.max(q / p);
+                } else {
+                    t1 = t1.min(q / p);
+                }
+            }
+        }
+        (t0 < t1).then(|| {
+            let at = |t: f64| [self.a[0] + t * d[0], self.a[1] + t * d[1]];
+            Segment {
+                a: at(t0),
+                b: at(t1),
+                ..*self
+            }
+        })
+    }
 }
 
 /// Parameters of [`detect`].
@@ -878,6 +906,20 @@ mod tests {
             // Extended to (nearly) the whole side, not just the predicted half.
             assert!(t.length() > 0.85 * l, "{} of {l}", t.length());
         }
+    }
+
+    #[test]
+    fn clipping_keeps_the_inside_part_and_the_direction() {
+        let s = Segment::new([-10.0, 5.0], [30.0, 25.0]);
+        let c = s.clipped([0.0, 0.0], [20.0, 40.0]).unwrap();
+        assert_eq!((c.a, c.b), ([0.0, 10.0], [20.0, 20.0]));
+        let r = Segment::new(s.b, s.a)
+            .clipped([0.0, 0.0], [20.0, 40.0])
+            .unwrap();
+        assert_eq!((r.a, r.b), ([20.0, 20.0], [0.0, 10.0]));
+        assert_eq!(s.clipped([-20.0, 0.0], [40.0, 40.0]), Some(s));
+        assert_eq!(s.clipped([40.0, 0.0], [50.0, 40.0]), None);
+        assert_eq!(s.clipped([0.0, 30.0], [50.0, 40.0]), None);
     }
 
     #[test]

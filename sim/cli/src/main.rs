@@ -167,8 +167,9 @@ enum Cmd {
         /// a VO step, on rendered village frames of the rover moving 6 cm per frame.
         #[arg(long)]
         vision: bool,
-        /// Instead: the local EKF's prediction and point updates per frame against the
-        /// number of mapped points (synthetic, every point observed once per frame).
+        /// Instead: the local EKF's prediction and point and line updates per frame against
+        /// the number of mapped landmarks (synthetic, a fifth of them lines, every landmark
+        /// observed once per frame).
         #[arg(long)]
         slam: bool,
     },
@@ -786,10 +787,11 @@ fn execute(
     Ok(())
 }
 
-/// `hetsim bench --slam`: EKF time per frame against the number of points.
+/// `hetsim bench --slam`: EKF time per frame against the number of landmarks.
 fn bench_slam() {
     use hetsim_slam::ekf::LocalMap;
     use hetsim_slam::idp::Sensor;
+    use hetsim_slam::lines::LinePrior;
     use nalgebra::{Isometry3, Matrix3, Matrix6, Translation3, UnitQuaternion, Vector2};
     let r = Matrix3::new(0.0, 0.0, 1.0, -1.0, 0.0, 0.0, 0.0, -1.0, 0.0);
     let sensor = Sensor::new(
@@ -804,34 +806,58 @@ fn bench_slam() {
             UnitQuaternion::from_matrix(&r),
         ),
     );
-    println!("| points in the local map | state size | ms per frame (prediction + an update per point) | us per update |");
-    println!("|---|---|---|---|");
+    println!("| landmarks in the local map (points + lines) | state size | ms per frame (prediction + an update per landmark) | us per point update | us per line update |");
+    println!("|---|---|---|---|---|");
     for n in [10usize, 25, 50, 100] {
+        // A fifth of the landmarks are lines, about what the village's sub-maps hold.
+        let lines = n / 5;
         let mut map = LocalMap::new();
-        for k in 0..n {
+        for k in 0..n - lines {
             let px = Vector2::new(40.0 + (k * 97 % 940) as f64, 40.0 + (k * 61 % 680) as f64);
             map.add_point(&sensor, &px, 1.0, 0.1, 0.2, k as u64);
         }
+        let segment = |k: usize| {
+            let a = Vector2::new(60.0 + (k * 131 % 800) as f64, 60.0 + (k * 89 % 560) as f64);
+            (a, a + Vector2::new(120.0, 40.0 + (k * 37 % 80) as f64))
+        };
+        for k in 0..lines {
+            let (a, b) = segment(k);
+            map.add_line(&sensor, &a, &b, 1.0, &LinePrior::seed(), (n + k) as u64);
+        }
         let frames = 20;
+        let (mut points_s, mut lines_s) = (0.0, 0.0);
         let start = wall_clock();
         for f in 0..frames {
             map.predict(
                 &Isometry3::translation(0.05, 0.0, 0.0),
                 &Matrix6::from_diagonal_element(1e-6),
             );
-            for k in 0..n {
+            let t = wall_clock();
+            for k in 0..map.points.len() {
                 if let Some((pr, _)) = map.predict_point(&sensor, k, 1.0) {
                     let z = pr.pixel + Vector2::new(0.1 * (f % 3) as f64, -0.1);
                     std::hint::black_box(map.update(&sensor, k, &z, 1.0, 9.21));
                 }
             }
+            points_s += t.elapsed().as_secs_f64();
+            let t = wall_clock();
+            for j in 0..map.lines.len() {
+                let (a, b) = segment(j);
+                let shift = Vector2::new(0.0, 0.2 * (f % 3) as f64);
+                std::hint::black_box(map.update_line(&sensor, j, &(a + shift), &b, 1.0, 9.21));
+            }
+            lines_s += t.elapsed().as_secs_f64();
             map.symmetrize();
         }
         let ms = start.elapsed().as_secs_f64() * 1e3 / frames as f64;
+        let per = |total: f64, count: usize| total * 1e6 / (frames * count.max(1)) as f64;
         println!(
-            "| {n} | {} | {ms:.2} | {:.1} |",
+            "| {n} ({} + {}) | {} | {ms:.2} | {:.1} | {:.1} |",
+            map.points.len(),
+            map.lines.len(),
             map.x.len(),
-            ms * 1e3 / n as f64
+            per(points_s, map.points.len()),
+            per(lines_s, map.lines.len()),
         );
     }
 }

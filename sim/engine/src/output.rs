@@ -107,8 +107,11 @@ pub fn write_run(
             .expect("PNG encodes in memory");
         files.push((format!("plots/{}-{}.png", e.kind, e.robot), png));
     }
-    if !result.map_points.is_empty() {
-        files.push(("map.ply".to_string(), ply(&result.map_points)));
+    if !result.map_points.is_empty() || !result.map_segments.is_empty() {
+        files.push((
+            "map.ply".to_string(),
+            ply(&result.map_points, &result.map_segments),
+        ));
     }
     // The SLAM's global level per robot: sub-map origins with covariance, and the events.
     for (robot, report) in &result.slam {
@@ -264,26 +267,51 @@ pub fn write_run(
 
 /// An ASCII PLY of mapped points, coloured by robot (in order of first appearance), with
 /// each point's robot index and sub-map as properties.
-fn ply(points: &[(String, usize, [f64; 3])]) -> Vec<u8> {
+/// The SLAM map as PLY: a vertex per point, then two per segment (its endpoints) joined by an
+/// edge; coloured by robot.
+fn ply(
+    points: &[(String, usize, [f64; 3])],
+    segments: &[(String, usize, [[f64; 3]; 2])],
+) -> Vec<u8> {
     const COLOURS: [[u8; 3]; 4] = [[204, 0, 0], [52, 101, 164], [78, 154, 6], [117, 80, 123]];
     let mut robots: Vec<&str> = Vec::new();
-    for (r, _, _) in points {
+    for r in points
+        .iter()
+        .map(|p| &p.0)
+        .chain(segments.iter().map(|s| &s.0))
+    {
         if !robots.contains(&r.as_str()) {
             robots.push(r);
         }
     }
     let mut out = format!(
-        "ply\nformat ascii 1.0\ncomment hetsim SLAM map points in the world frame (x east, y north, z up, metres)\ncomment robots: {}\nelement vertex {}\nproperty double x\nproperty double y\nproperty double z\nproperty uchar red\nproperty uchar green\nproperty uchar blue\nproperty int robot\nproperty int submap\nend_header\n",
+        "ply\nformat ascii 1.0\ncomment hetsim SLAM map in the world frame (x east, y north, z up, metres)\ncomment robots: {}\ncomment {} points, then the two endpoints of each of the {} line segments (edges)\nelement vertex {}\nproperty double x\nproperty double y\nproperty double z\nproperty uchar red\nproperty uchar green\nproperty uchar blue\nproperty int robot\nproperty int submap\nelement edge {}\nproperty int vertex1\nproperty int vertex2\nproperty uchar red\nproperty uchar green\nproperty uchar blue\nend_header\n",
         robots.join(" "),
-        points.len()
+        points.len(),
+        segments.len(),
+        points.len() + 2 * segments.len(),
+        segments.len()
     );
-    for (r, node, p) in points {
+    let colour = |r: &String| {
         let k = robots.iter().position(|x| x == r).unwrap_or(0);
-        let c = COLOURS[k % COLOURS.len()];
+        (k, COLOURS[k % COLOURS.len()])
+    };
+    let vertices = points.iter().map(|(r, node, p)| (r, node, p)).chain(
+        segments
+            .iter()
+            .flat_map(|(r, node, e)| e.iter().map(move |p| (r, node, p))),
+    );
+    for (r, node, p) in vertices {
+        let (k, c) = colour(r);
         out.push_str(&format!(
             "{:.4} {:.4} {:.4} {} {} {} {k} {node}\n",
             p[0], p[1], p[2], c[0], c[1], c[2]
         ));
+    }
+    for (i, (r, _, _)) in segments.iter().enumerate() {
+        let (_, c) = colour(r);
+        let v = points.len() + 2 * i;
+        out.push_str(&format!("{v} {} {} {} {}\n", v + 1, c[0], c[1], c[2]));
     }
     out.into_bytes()
 }
@@ -291,15 +319,18 @@ fn ply(points: &[(String, usize, [f64; 3])]) -> Vec<u8> {
 #[cfg(test)]
 mod tests {
     #[test]
-    fn ply_has_a_vertex_per_point_coloured_by_robot() {
+    fn ply_has_a_vertex_per_point_and_an_edge_per_segment_coloured_by_robot() {
         let pts = vec![
             ("dala".to_string(), 0, [1.0, 2.0, 3.0]),
             ("ressac".to_string(), 2, [4.0, 5.0, 6.0]),
             ("dala".to_string(), 1, [7.0, 8.0, 9.0]),
         ];
-        let text = String::from_utf8(super::ply(&pts)).unwrap();
+        let segs = vec![("ressac".to_string(), 3, [[0.0, 0.0, 0.0], [1.0, 0.0, 0.5]])];
+        let text = String::from_utf8(super::ply(&pts, &segs)).unwrap();
         assert!(
-            text.contains("element vertex 3\n") && text.contains("comment robots: dala ressac")
+            text.contains("element vertex 5\n")
+                && text.contains("element edge 1\n")
+                && text.contains("comment robots: dala ressac")
         );
         let body: Vec<&str> = text.split("end_header\n").nth(1).unwrap().lines().collect();
         assert_eq!(
@@ -307,7 +338,10 @@ mod tests {
             [
                 "1.0000 2.0000 3.0000 204 0 0 0 0",
                 "4.0000 5.0000 6.0000 52 101 164 1 2",
-                "7.0000 8.0000 9.0000 204 0 0 0 1"
+                "7.0000 8.0000 9.0000 204 0 0 0 1",
+                "0.0000 0.0000 0.0000 52 101 164 1 3",
+                "1.0000 0.0000 0.5000 52 101 164 1 3",
+                "3 4 52 101 164"
             ]
         );
     }

@@ -96,6 +96,8 @@ pub struct RunResult {
     pub team: Option<crate::team::TeamOutcome>,
     /// The SLAM stacks' mapped points in the world frame: (robot, sub-map, point).
     pub map_points: Vec<(String, usize, [f64; 3])>,
+    /// The SLAM stacks' mapped line segments in the world frame: (robot, sub-map, endpoints).
+    pub map_segments: Vec<(String, usize, [[f64; 3]; 2])>,
     /// The SLAM stacks' reports, by robot.
     pub slam: Vec<(String, hetsim_msgs::SlamReport)>,
 }
@@ -392,6 +394,16 @@ fn run_on_worker(
                 .map(move |(node, p)| (name.clone(), node, p))
         })
         .collect();
+    let map_segments: Vec<(String, usize, [[f64; 3]; 2])> = stacks
+        .iter()
+        .enumerate()
+        .flat_map(|(i, s)| {
+            let name = names[i].clone();
+            s.map_segments()
+                .into_iter()
+                .map(move |(node, e)| (name.clone(), node, e))
+        })
+        .collect();
     let mut estimates = Vec::new();
     for (i, stack) in stacks.iter().enumerate() {
         for (kind, poses) in stack.trajectories() {
@@ -432,6 +444,7 @@ fn run_on_worker(
         estimates,
         team,
         map_points,
+        map_segments,
     })
 }
 
