@@ -35,7 +35,9 @@
 //!      `rendezvous_period_s`) links the origin to the other robot's origin made at the same
 //!      stamp: both robots see each other and both start a sub-map then (a full rendezvous);
 //!    * an image match (the emulated matcher found one of another robot's key frames, i.e.
-//!      sub-map origins, under this robot) links the origin to that past origin.
+//!      sub-map origins, under this robot; once per robot per `image_match_period_s`, so
+//!      that one pass over the other robot's path gives one link, not one per nearby origin)
+//!      links the origin to that past origin.
 //! 8. the robot's part of the graph goes to every robot it has met, over the radio, after each
 //!    event and every `share_period_s`; parts received are merged and the graph optimized.
 //!
@@ -93,6 +95,8 @@ pub struct SlamParams {
     pub cooperative: bool,
     /// Least time between two rendezvous events with the same robot, seconds.
     pub rendezvous_period_s: f64,
+    /// Least time between two image-match events with the same robot, seconds.
+    pub image_match_period_s: f64,
     /// The robot's part of the graph is sent at least this often, seconds.
     pub share_period_s: f64,
     /// Lines on (`false`: points only).
@@ -144,6 +148,7 @@ impl SlamParams {
             edge_drift: 0.03,
             cooperative: true,
             rendezvous_period_s: 120.0,
+            image_match_period_s: 30.0,
             share_period_s: 5.0,
             lines: true,
             line_prior: LinePrior::seed(),
@@ -179,8 +184,8 @@ pub struct SlamStack {
     pending_match: Option<ImageMatch>,
     /// When the last event happened, nanoseconds.
     last_event_ns: u64,
-    /// The last rendezvous with each robot, nanoseconds.
-    last_rendezvous: BTreeMap<String, u64>,
+    /// The last link event of each kind with each robot, nanoseconds.
+    last_link: BTreeMap<(&'static str, String), u64>,
     /// Robots met (by an event or a part received): the radio's addressees.
     peers: std::collections::BTreeSet<String>,
     /// When this robot's part was last sent, nanoseconds.
@@ -280,7 +285,7 @@ impl SlamStack {
             pending_rendezvous: None,
             pending_match: None,
             last_event_ns: 0,
-            last_rendezvous: BTreeMap::new(),
+            last_link: BTreeMap::new(),
             peers: Default::default(),
             last_share_ns: None,
             outgoing: Vec::new(),
@@ -388,12 +393,13 @@ impl SlamStack {
                 sigmas,
                 stamp,
             );
-            self.last_rendezvous.insert(r.other, r.stamp_ns);
+            self.last_link.insert(("rendezvous", r.other), r.stamp_ns);
         }
         if let Some(m) = self.pending_match.take_if(|m| m.stamp_ns <= stamp) {
             let sigmas = (m.sigma_m, m.sigma_rad);
             let link = (m.other.as_str(), m.other_stamp_ns);
             self.link_event("image_match", link, m.relative, sigmas, stamp);
+            self.last_link.insert(("image_match", m.other), m.stamp_ns);
         }
         self.add_points(&l);
         if self.params.lines {
@@ -745,6 +751,14 @@ impl SlamStack {
         self.after_event(kind, other, stamp, before);
     }
 
+    /// Whether a link event of `kind` with `other` at `stamp_ns` is due: none with that
+    /// robot in the last `period_s`.
+    fn link_due(&self, kind: &'static str, other: &str, stamp_ns: u64, period_s: f64) -> bool {
+        self.last_link
+            .get(&(kind, other.to_string()))
+            .is_none_or(|t| stamp_ns >= t + (period_s * 1e9) as u64)
+    }
+
     /// Sends this robot's part of the graph to every robot met.
     fn share(&mut self, now_ns: u64) {
         let Some(g) = self.global.as_ref() else {
@@ -830,17 +844,20 @@ impl RobotStack for SlamStack {
                     }
                 }
                 SensorMsg::Rendezvous(r) => {
-                    let period = (self.params.rendezvous_period_s * 1e9) as u64;
-                    let due = self
-                        .last_rendezvous
-                        .get(&r.other)
-                        .is_none_or(|t| r.stamp_ns >= t + period);
-                    if due && self.pending_rendezvous.is_none() {
+                    let period = self.params.rendezvous_period_s;
+                    if self.pending_rendezvous.is_none()
+                        && self.link_due("rendezvous", &r.other, r.stamp_ns, period)
+                    {
                         self.pending_rendezvous = Some(r.clone());
                     }
                 }
-                SensorMsg::ImageMatch(m) if self.pending_match.is_none() => {
-                    self.pending_match = Some(m.clone());
+                SensorMsg::ImageMatch(m) => {
+                    let period = self.params.image_match_period_s;
+                    if self.pending_match.is_none()
+                        && self.link_due("image_match", &m.other, m.stamp_ns, period)
+                    {
+                        self.pending_match = Some(m.clone());
+                    }
                 }
                 SensorMsg::Comms(d) if d.topic == SHARE_TOPIC => self.receive(d),
                 _ => {}
