@@ -14,7 +14,8 @@ use nalgebra::{Matrix3, SMatrix, Vector2, Vector3, Vector4};
 /// An anchored Plücker line.
 pub type Apl = SMatrix<f64, 9, 1>;
 
-fn parts(a: &Apl) -> (Vector3<f64>, Vector3<f64>, Vector3<f64>) {
+/// The anchor, moment and direction of an APL.
+pub(crate) fn parts(a: &Apl) -> (Vector3<f64>, Vector3<f64>, Vector3<f64>) {
     (
         Vector3::new(a[0], a[1], a[2]),
         Vector3::new(a[3], a[4], a[5]),

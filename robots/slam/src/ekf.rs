@@ -23,6 +23,12 @@ use crate::idp::{self, Idp, Projection, Sensor};
 use crate::quat::{d_normalize, d_rot_dq, from_rotation_vector, left, right, rot};
 use nalgebra::{DMatrix, DVector, Isometry3, Matrix2, Matrix6, SMatrix, Vector2, Vector3, Vector4};
 
+/// The deletion rule for points and lines: searched at least `min_searches` times and found
+/// in fewer than half of them.
+pub(crate) fn unreliable(searched: u32, found: u32, min_searches: u32) -> bool {
+    searched >= min_searches && 2 * found < searched
+}
+
 /// Book-keeping of a mapped point beside its state.
 #[derive(Clone, Debug, PartialEq)]
 pub struct PointInfo {
@@ -282,23 +288,21 @@ impl LocalMap {
         let m = y.len();
         let cross = jr * self.p.view((0, 0), (7, n)); // m x n
         let pyy = jr * self.p.view((0, 0), (7, 7)) * jr.transpose() + noise;
-        // The old index i goes to i, or i + m at or after `at`.
-        let new = |i: usize| if i < at { i } else { i + m };
-        let mut x = DVector::zeros(n + m);
-        let mut p = DMatrix::zeros(n + m, n + m);
-        for i in 0..n {
-            x[new(i)] = self.x[i];
-            for j in 0..n {
-                p[(new(i), new(j))] = self.p[(i, j)];
-            }
-            for a in 0..m {
-                p[(at + a, new(i))] = cross[(a, i)];
-                p[(new(i), at + a)] = cross[(a, i)];
-            }
-        }
-        x.rows_mut(at, m).copy_from(y);
+        self.x = self.x.clone().insert_rows(at, m, 0.0);
+        self.x.rows_mut(at, m).copy_from(y);
+        let mut p = self
+            .p
+            .clone()
+            .insert_rows(at, m, 0.0)
+            .insert_columns(at, m, 0.0);
+        // The cross-covariance's columns are the old state's: before `at`, and after the block.
+        let (before, after) = (cross.columns(0, at), cross.columns(at, n - at));
+        p.view_mut((at, 0), (m, at)).copy_from(&before);
+        p.view_mut((0, at), (at, m)).copy_from(&before.transpose());
+        p.view_mut((at, at + m), (m, n - at)).copy_from(&after);
+        p.view_mut((at + m, at), (n - at, m))
+            .copy_from(&after.transpose());
         p.view_mut((at, at), (m, m)).copy_from(&pyy);
-        self.x = x;
         self.p = p;
     }
 
@@ -374,9 +378,8 @@ impl LocalMap {
         let mut k = 0;
         while k < self.points.len() {
             let info = &self.points[k];
-            let unreliable = info.searched >= min_searches && 2 * info.found < info.searched;
             let behind = self.x[7 + 6 * k + 5] < 0.0;
-            if unreliable || behind {
+            if unreliable(info.searched, info.found, min_searches) || behind {
                 removed.push(info.id);
                 self.remove(k);
             } else {
@@ -418,6 +421,17 @@ pub(crate) mod tests {
                 UnitQuaternion::from_matrix(&r),
             ),
         )
+    }
+
+    /// The depth and the pixel of world point `w` seen by the robot at `pose`.
+    pub(crate) fn seen(s: &Sensor, pose: &Isometry3<f64>, w: &Vector3<f64>) -> (f64, Vector2<f64>) {
+        let cam = pose * Isometry3::from_parts(s.t_bc.into(), UnitQuaternion::from_matrix(&s.r_bc));
+        let c = cam.inverse_transform_point(&(*w).into());
+        let pixel = Vector2::new(
+            s.camera.alpha_u * c.x / c.z + s.camera.u0,
+            s.camera.alpha_v * c.y / c.z + s.camera.v0,
+        );
+        (c.z, pixel)
     }
 
     #[test]
@@ -491,13 +505,7 @@ pub(crate) mod tests {
             &Isometry3::translation(0.0, 1.0, 0.0),
             &Matrix6::from_diagonal_element(1e-6),
         );
-        let cam =
-            m.pose() * Isometry3::from_parts(s.t_bc.into(), UnitQuaternion::from_matrix(&s.r_bc));
-        let local = cam.inverse_transform_point(&target.into());
-        let z = Vector2::new(
-            s.camera.alpha_u * local.x / local.z + s.camera.u0,
-            s.camera.alpha_v * local.y / local.z + s.camera.v0,
-        );
+        let (_, z) = seen(&s, &m.pose(), &target);
         assert_eq!(m.update(&s, k, &z, 1.0, 9.21), Some(Update::Accepted));
         assert!(m.p[(12, 12)] < before, "{} vs {before}", m.p[(12, 12)]);
         // A wild measurement is gated.
@@ -579,14 +587,9 @@ pub(crate) mod tests {
             let cam = Isometry3::from_parts(s.t_bc.into(), UnitQuaternion::from_matrix(&s.r_bc));
             let observe =
                 |pose: &Isometry3<f64>, w: &Vector3<f64>, rng: &mut rand_chacha::ChaCha8Rng| {
-                    let c = (pose * cam).inverse_transform_point(&(*w).into());
-                    (c.z > 0.5)
-                        .then(|| {
-                            Vector2::new(
-                                s.camera.alpha_u * c.x / c.z + s.camera.u0 + gauss(rng),
-                                s.camera.alpha_v * c.y / c.z + s.camera.v0 + gauss(rng),
-                            )
-                        })
+                    let (depth, pixel) = seen(&s, pose, w);
+                    (depth > 0.5)
+                        .then(|| pixel + Vector2::new(gauss(rng), gauss(rng)))
                         .filter(|z| z.x > 0.0 && z.y > 0.0 && z.x < 640.0 && z.y < 480.0)
                 };
             let mut ids: Vec<Option<usize>> = vec![None; world.len()];

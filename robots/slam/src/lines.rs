@@ -75,8 +75,6 @@ impl LinePrior {
 /// A line's predicted measurement for a segment observation.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct LinePrediction {
-    /// The predicted image line (homogeneous).
-    pub line: Vector3<f64>,
     /// The signed distances of the observed endpoints to it, pixels (the measurement is 0).
     pub distances: Vector2<f64>,
     /// Their Jacobian on the robot (7 columns) and the line (9).
@@ -122,11 +120,7 @@ pub fn ray_abscissa(
     a: &Apl,
     e: &Vector2<f64>,
 ) -> Option<f64> {
-    let (p0, n, v) = (
-        a.fixed_rows::<3>(0).into_owned(),
-        a.fixed_rows::<3>(3).into_owned(),
-        a.fixed_rows::<3>(6).into_owned(),
-    );
+    let (p0, n, v) = apl::parts(a);
     let vn = v.norm();
     let distance = n.norm() / vn;
     if !(vn > 1e-12 && distance > 1e-9) {
@@ -174,7 +168,7 @@ impl LocalMap {
         sigma_px: f64,
     ) -> Option<LinePrediction> {
         let pr = apl::project(sensor, &self.position(), &self.quaternion(), &self.line(j));
-        if pr.line.x.hypot(pr.line.y) < 1e-12 * pr.line.norm().max(1e-300) {
+        if pr.line.x.hypot(pr.line.y) <= 1e-12 * pr.line.norm() {
             return None;
         }
         let (distances, dh_dl) = apl::endpoint_distances(&pr.line, e1, e2);
@@ -194,7 +188,6 @@ impl LocalMap {
             sigma_px,
         );
         Some(LinePrediction {
-            line: pr.line,
             distances,
             jacobian,
             s: Matrix2::new(s[(0, 0)], s[(0, 1)], s[(1, 0)], s[(1, 1)]),
@@ -299,8 +292,8 @@ impl LocalMap {
     /// Line `j`'s segment: its two endpoints in the map frame (Eq. 13).
     pub fn line_endpoints(&self, j: usize) -> [Vector3<f64>; 2] {
         let a = self.line(j);
-        let v = a.fixed_rows::<3>(6).norm();
-        let distance = a.fixed_rows::<3>(3).norm() / v;
+        let (_, n, v) = apl::parts(&a);
+        let distance = n.norm() / v.norm();
         self.lines[j]
             .extent
             .map(|s| apl::point_at(&a, s * distance))
@@ -310,10 +303,7 @@ impl LocalMap {
     /// anchor (`|n| / |v|`), and the angular one of its direction (radians).
     pub fn line_spread(&self, j: usize) -> (f64, f64) {
         let a = self.line(j);
-        let (n, v) = (
-            a.fixed_rows::<3>(3).into_owned(),
-            a.fixed_rows::<3>(6).into_owned(),
-        );
+        let (_, n, v) = apl::parts(&a);
         let (nn, vn) = (n.norm(), v.norm());
         let start = self.line_start() + 9 * j + 3;
         let c = self.p.view((start, start), (6, 6));
@@ -341,10 +331,9 @@ impl LocalMap {
         let mut j = 0;
         while j < self.lines.len() {
             let info = &self.lines[j];
-            let unreliable = info.searched >= min_searches && 2 * info.found < info.searched;
             let a = self.line(j);
-            let degenerate = !a.iter().all(|x| x.is_finite()) || a.fixed_rows::<3>(6).norm() < 1e-9;
-            if unreliable || degenerate {
+            let degenerate = !a.iter().all(|x| x.is_finite()) || apl::parts(&a).2.norm() < 1e-9;
+            if crate::ekf::unreliable(info.searched, info.found, min_searches) || degenerate {
                 removed.push(info.id);
                 self.remove_line(j);
             } else {
@@ -368,19 +357,14 @@ impl LocalMap {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::ekf::tests::{forward_sensor, gauss};
+    use crate::ekf::tests::{forward_sensor, gauss, seen};
     use crate::quat::tests::{assert_close, numeric, random_quat};
     use nalgebra::{Isometry3, Matrix6, UnitQuaternion};
     use rand::{RngExt, SeedableRng};
 
     /// The pixel of world point `w` seen by the robot at `pose`.
     fn pixel(s: &Sensor, pose: &Isometry3<f64>, w: &Vector3<f64>) -> Vector2<f64> {
-        let cam = pose * Isometry3::from_parts(s.t_bc.into(), UnitQuaternion::from_matrix(&s.r_bc));
-        let c = cam.inverse_transform_point(&(*w).into());
-        Vector2::new(
-            s.camera.alpha_u * c.x / c.z + s.camera.u0,
-            s.camera.alpha_v * c.y / c.z + s.camera.v0,
-        )
+        seen(s, pose, w).1
     }
 
     #[test]

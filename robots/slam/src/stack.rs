@@ -205,8 +205,6 @@ pub struct SlamStack {
     /// The lines' segments in the current frame, tracked or predicted (where new ones must
     /// not be added).
     seen_segments: Vec<Segment>,
-    /// Stereo pairs processed.
-    frames: u64,
     /// `(stamp, sub-map, pose in the sub-map, its covariance)` of every frame.
     trajectory: Vec<(u64, usize, Pose, Matrix6<f64>)>,
     rng: Lcg,
@@ -239,6 +237,12 @@ impl rand::TryRng for Lcg {
         }
         Ok(())
     }
+}
+
+/// A point of a sub-map in the world frame, given the sub-map's origin.
+fn to_world(origin: &Pose, p: &Vector3<f64>) -> [f64; 3] {
+    let w = origin * nalgebra::Point3::from(*p);
+    [w.x, w.y, w.z]
 }
 
 /// Whether the tracked segment `t` already covers the detected `d`: nearly parallel (10
@@ -279,7 +283,6 @@ impl SlamStack {
             closed_points: Vec::new(),
             closed_segments: Vec::new(),
             seen_segments: Vec::new(),
-            frames: 0,
             open_origins: Vec::new(),
             pending_fix: None,
             pending_rendezvous: None,
@@ -380,7 +383,6 @@ impl SlamStack {
             }
             self.observe(&l);
         }
-        self.frames += 1;
         if let Some(fix) = self.pending_fix.take() {
             self.gps_event(&fix, stamp);
         }
@@ -495,12 +497,12 @@ impl SlamStack {
     /// Tracks the lines and updates the map with them.
     fn observe_lines(&mut self, img: &Gray) {
         let sigma = self.params.sigma_px;
+        let tracking = segments::TrackParams::default();
         self.seen_segments.clear();
         for j in 0..self.map.lines.len() {
             let Some(predicted) = self.predict_segment(j, img) else {
                 continue;
             };
-            let tracking = segments::TrackParams::default();
             if predicted.length() < 4.0 * tracking.spacing_px {
                 continue;
             }
@@ -538,7 +540,8 @@ impl SlamStack {
     /// New lines from detected segments that no tracked line covers.
     fn add_lines(&mut self, img: &Gray) {
         if self.seen_segments.len() >= self.params.max_visible_lines
-            || self.frames % self.params.line_detect_period as u64 != 1
+            // The frames before this one are in the trajectory.
+            || self.trajectory.len() % self.params.line_detect_period as usize != 0
         {
             return;
         }
@@ -759,6 +762,26 @@ impl SlamStack {
             .is_none_or(|t| stamp_ns >= t + (period_s * 1e9) as u64)
     }
 
+    /// The closed sub-maps' landmarks and the current map's, with their sub-maps, through the
+    /// graph's origins by `place` (nothing before the first pair).
+    fn in_world<T: Copy, W>(
+        &self,
+        closed: &[(usize, T)],
+        current: impl Iterator<Item = T>,
+        place: impl Fn(&Pose, T) -> W,
+    ) -> Vec<(usize, W)> {
+        let Some(g) = self.global.as_ref() else {
+            return Vec::new();
+        };
+        let node = g.len() - 1;
+        closed
+            .iter()
+            .copied()
+            .chain(current.map(|x| (node, x)))
+            .map(|(k, x)| (k, place(&g.origin(k), x)))
+            .collect()
+    }
+
     /// Sends this robot's part of the graph to every robot met.
     fn share(&mut self, now_ns: u64) {
         let Some(g) = self.global.as_ref() else {
@@ -921,48 +944,21 @@ impl RobotStack for SlamStack {
     }
 
     fn map_points(&self) -> Vec<(usize, [f64; 3])> {
-        let Some(g) = self.global.as_ref() else {
-            return Vec::new();
-        };
-        let current = g.len() - 1;
-        self.closed_points
-            .iter()
-            .copied()
-            .chain(
-                self.map
-                    .euclidean_points()
-                    .into_iter()
-                    .map(|(_, p)| (current, p)),
-            )
-            .map(|(node, p)| {
-                let w = g.origin(node) * nalgebra::Point3::from(p);
-                (node, [w.x, w.y, w.z])
-            })
-            .collect()
+        let current = self.map.euclidean_points().into_iter().map(|(_, p)| p);
+        self.in_world(&self.closed_points, current, |origin, p| {
+            to_world(origin, &p)
+        })
     }
 
     fn map_segments(&self) -> Vec<(usize, [[f64; 3]; 2])> {
-        let Some(g) = self.global.as_ref() else {
-            return Vec::new();
-        };
-        let current = g.len() - 1;
-        self.closed_segments
-            .iter()
-            .copied()
-            .chain(
-                self.map
-                    .euclidean_segments(self.params.line_output_spread)
-                    .into_iter()
-                    .map(|(_, e)| (current, e)),
-            )
-            .map(|(node, e)| {
-                let w = e.map(|p| {
-                    let w = g.origin(node) * nalgebra::Point3::from(p);
-                    [w.x, w.y, w.z]
-                });
-                (node, w)
-            })
-            .collect()
+        let current = self
+            .map
+            .euclidean_segments(self.params.line_output_spread)
+            .into_iter()
+            .map(|(_, e)| e);
+        self.in_world(&self.closed_segments, current, |origin, e| {
+            e.map(|p| to_world(origin, &p))
+        })
     }
 
     fn trajectories(&self) -> Vec<(String, Vec<(u64, Pose)>)> {

@@ -384,26 +384,8 @@ fn run_on_worker(
                     .map_err(RunError::Localize)?;
         }
     }
-    let map_points: Vec<(String, usize, [f64; 3])> = stacks
-        .iter()
-        .enumerate()
-        .flat_map(|(i, s)| {
-            let name = names[i].clone();
-            s.map_points()
-                .into_iter()
-                .map(move |(node, p)| (name.clone(), node, p))
-        })
-        .collect();
-    let map_segments: Vec<(String, usize, [[f64; 3]; 2])> = stacks
-        .iter()
-        .enumerate()
-        .flat_map(|(i, s)| {
-            let name = names[i].clone();
-            s.map_segments()
-                .into_iter()
-                .map(move |(node, e)| (name.clone(), node, e))
-        })
-        .collect();
+    let map_points = per_robot(&stacks, &names, |s| s.map_points());
+    let map_segments = per_robot(&stacks, &names, |s| s.map_segments());
     let mut estimates = Vec::new();
     for (i, stack) in stacks.iter().enumerate() {
         for (kind, poses) in stack.trajectories() {
@@ -446,6 +428,23 @@ fn run_on_worker(
         map_points,
         map_segments,
     })
+}
+
+/// What `items` gives for each stack, tagged with its robot's name: `(robot, sub-map, item)`.
+fn per_robot<T>(
+    stacks: &[Box<dyn RobotStack>],
+    names: &[String],
+    items: impl Fn(&dyn RobotStack) -> Vec<(usize, T)>,
+) -> Vec<(String, usize, T)> {
+    stacks
+        .iter()
+        .zip(names)
+        .flat_map(|(s, name)| {
+            items(s.as_ref())
+                .into_iter()
+                .map(move |(node, x)| (name.clone(), node, x))
+        })
+        .collect()
 }
 
 fn encode<T: Serialize>(value: &T) -> Vec<u8> {
