@@ -49,6 +49,16 @@ pub fn hetsim(args: &[&str], env: &[(&str, &str)]) -> Output {
     cmd.output().expect("hetsim starts")
 }
 
+/// Runs a scenario in-process with the robot software its robots declare (no cameras unless
+/// `options` asks for them).
+pub fn run_scenario(
+    scenario: &hetsim_scene::Scenario,
+    options: hetsim_engine::RunOptions<'_>,
+) -> hetsim_engine::RunOutput {
+    let stacks = hetsim_stacks::build_stacks(scenario, false);
+    hetsim_engine::run(scenario, stacks, |_, _| {}, options).expect("the run completes")
+}
+
 /// The `digest: <hex>` line a successful run prints last.
 pub fn printed_digest(out: &Output) -> String {
     let stdout = String::from_utf8_lossy(&out.stdout);

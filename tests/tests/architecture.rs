@@ -1,10 +1,19 @@
-//! The robot software never depends on the simulator.
+//! The crate boundaries ARCHITECTURE.md states, checked from `cargo metadata` and the sources.
+//!
+//! * robot software (`robots/*`) never depends on the simulator (`sim/*`);
+//! * the engine depends on no robot crate but `hetsim-msgs`;
+//! * `hetsim-msgs` depends on nothing of ours;
+//! * each heavy dependency lives in one crate (rapier in physics, wgpu in render, clap and
+//!   indicatif and anyhow in the binary);
+//! * no crate's top-level modules form a cycle through `crate::` paths;
+//! * no source file is over 600 lines.
 
 use hetsim_tests::repo;
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, BTreeSet};
+use std::path::{Path, PathBuf};
 
-#[test]
-fn robots_crates_never_depend_on_sim_crates() {
+/// Our packages: name -> (folder relative to the repository, normal dependencies by name).
+fn packages() -> BTreeMap<String, (String, Vec<String>)> {
     let out = std::process::Command::new(env!("CARGO"))
         .args([
             "metadata",
@@ -23,10 +32,9 @@ fn robots_crates_never_depend_on_sim_crates() {
     );
     let meta: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     let root = repo().canonicalize().unwrap();
-    // package name -> folder relative to the repository
-    let mut folder: BTreeMap<String, String> = BTreeMap::new();
+    let mut found = BTreeMap::new();
     for p in meta["packages"].as_array().unwrap() {
-        let manifest = std::path::Path::new(p["manifest_path"].as_str().unwrap())
+        let manifest = Path::new(p["manifest_path"].as_str().unwrap())
             .canonicalize()
             .unwrap();
         let rel = manifest
@@ -36,28 +44,223 @@ fn robots_crates_never_depend_on_sim_crates() {
             .unwrap()
             .to_string_lossy()
             .to_string();
-        folder.insert(p["name"].as_str().unwrap().to_string(), rel);
+        let deps = p["dependencies"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .filter(|d| d["kind"].is_null())
+            .map(|d| d["name"].as_str().unwrap().to_string())
+            .collect();
+        found.insert(p["name"].as_str().unwrap().to_string(), (rel, deps));
     }
-    let robots: Vec<_> = folder
+    assert!(found.len() >= 10, "{found:?}");
+    found
+}
+
+#[test]
+fn robots_crates_never_depend_on_sim_crates() {
+    let all = packages();
+    let robots: Vec<&String> = all
         .iter()
-        .filter(|(_, f)| f.starts_with("robots/"))
-        .map(|(n, _)| n.clone())
+        .filter(|(_, (f, _))| f.starts_with("robots/"))
+        .map(|(n, _)| n)
         .collect();
-    assert!(robots.len() >= 2, "{folder:?}");
-    for p in meta["packages"].as_array().unwrap() {
-        let name = p["name"].as_str().unwrap();
-        if !robots.iter().any(|r| r == name) {
-            continue;
-        }
-        for dep in p["dependencies"].as_array().unwrap() {
-            let dep_name = dep["name"].as_str().unwrap();
-            if let Some(f) = folder.get(dep_name) {
+    assert!(robots.len() >= 5, "{all:?}");
+    for name in robots {
+        for dep in &all[name].1 {
+            if let Some((f, _)) = all.get(dep) {
                 assert!(
                     !f.starts_with("sim/"),
-                    "{name} ({}) depends on {dep_name} ({f})",
-                    folder[name]
+                    "{name} ({}) depends on {dep} ({f})",
+                    all[name].0
                 );
             }
         }
     }
+}
+
+#[test]
+fn the_engine_knows_no_robot_software_but_the_messages() {
+    let all = packages();
+    let (_, deps) = &all["hetsim-engine"];
+    for dep in deps {
+        if let Some((f, _)) = all.get(dep) {
+            assert!(
+                !f.starts_with("robots/") || dep == "hetsim-msgs",
+                "hetsim-engine depends on robot crate {dep} ({f}); robot software is wired in hetsim-stacks"
+            );
+        }
+    }
+    assert!(deps.iter().any(|d| d == "hetsim-msgs"));
+    // The boundary crate depends on nothing of ours.
+    let (_, msgs) = &all["hetsim-msgs"];
+    assert!(
+        msgs.iter().all(|d| !all.contains_key(d)),
+        "hetsim-msgs depends on {msgs:?}"
+    );
+    // Evaluation reads the engine's outputs; the engine never reads evaluation.
+    assert!(!deps
+        .iter()
+        .any(|d| d == "hetsim-eval" || d == "hetsim-stacks"));
+}
+
+#[test]
+fn each_heavy_dependency_lives_in_one_crate() {
+    let all = packages();
+    for (heavy, home) in [
+        ("rapier3d-f64", "hetsim-physics"),
+        ("wgpu", "hetsim-render"),
+        ("clap", "hetsim-cli"),
+        ("indicatif", "hetsim-cli"),
+        ("anyhow", "hetsim-cli"),
+    ] {
+        let users: Vec<&String> = all
+            .iter()
+            .filter(|(_, (_, deps))| deps.iter().any(|d| d == heavy))
+            .map(|(n, _)| n)
+            .collect();
+        assert_eq!(users, vec![home], "{heavy} is used by {users:?}");
+    }
+}
+
+/// Every `.rs` file under a folder, sorted.
+fn sources(dir: &Path) -> Vec<PathBuf> {
+    let mut out = Vec::new();
+    let mut stack = vec![dir.to_path_buf()];
+    while let Some(d) = stack.pop() {
+        for e in std::fs::read_dir(&d).unwrap() {
+            let p = e.unwrap().path();
+            if p.is_dir() {
+                stack.push(p);
+            } else if p.extension().is_some_and(|x| x == "rs") {
+                out.push(p);
+            }
+        }
+    }
+    out.sort();
+    out
+}
+
+/// The top-level module a source file belongs to (`src/a.rs` and `src/a/b.rs` are `a`).
+fn top_module(src: &Path, file: &Path) -> String {
+    let rel = file.strip_prefix(src).unwrap();
+    let first = rel
+        .components()
+        .next()
+        .unwrap()
+        .as_os_str()
+        .to_string_lossy();
+    first.trim_end_matches(".rs").to_string()
+}
+
+/// The top-level modules a file names through `crate::` paths (`crate::a::x`,
+/// `crate::{a, b}`) outside comments (a doc link is not a dependency).
+fn crate_references(text: &str) -> BTreeSet<String> {
+    let code: String = text
+        .lines()
+        .filter(|l| !l.trim_start().starts_with("//"))
+        .collect::<Vec<_>>()
+        .join("\n");
+    let text = code.as_str();
+    let mut out = BTreeSet::new();
+    for (i, _) in text.match_indices("crate::") {
+        let rest = &text[i + "crate::".len()..];
+        let names: Vec<&str> = if let Some(group) = rest.strip_prefix('{') {
+            let end = group.find('}').unwrap_or(group.len());
+            group[..end]
+                .split(',')
+                .map(|s| s.trim().split("::").next().unwrap_or("").trim())
+                .collect()
+        } else {
+            vec![rest
+                .split(|c: char| !(c.is_alphanumeric() || c == '_'))
+                .next()
+                .unwrap_or("")]
+        };
+        out.extend(
+            names
+                .into_iter()
+                .filter(|n| !n.is_empty() && n.chars().next().unwrap().is_lowercase())
+                .map(str::to_string),
+        );
+    }
+    out
+}
+
+#[test]
+fn no_crate_has_a_module_cycle() {
+    for (name, (folder, _)) in packages() {
+        let src = repo().join(&folder).join("src");
+        if !src.is_dir() {
+            continue;
+        }
+        let mut edges: BTreeMap<String, BTreeSet<String>> = BTreeMap::new();
+        let files = sources(&src);
+        let modules: BTreeSet<String> = files.iter().map(|f| top_module(&src, f)).collect();
+        for f in &files {
+            let from = top_module(&src, f);
+            let text = std::fs::read_to_string(f).unwrap();
+            for to in crate_references(&text) {
+                if to != from && modules.contains(&to) && from != "lib" && from != "main" {
+                    edges.entry(from.clone()).or_default().insert(to);
+                }
+            }
+        }
+        // Depth-first search for a back edge.
+        fn visit(
+            m: &str,
+            edges: &BTreeMap<String, BTreeSet<String>>,
+            path: &mut Vec<String>,
+            done: &mut BTreeSet<String>,
+        ) -> Option<Vec<String>> {
+            if let Some(k) = path.iter().position(|p| p == m) {
+                let mut cycle = path[k..].to_vec();
+                cycle.push(m.to_string());
+                return Some(cycle);
+            }
+            if done.contains(m) {
+                return None;
+            }
+            path.push(m.to_string());
+            for next in edges.get(m).into_iter().flatten() {
+                if let Some(c) = visit(next, edges, path, done) {
+                    return Some(c);
+                }
+            }
+            path.pop();
+            done.insert(m.to_string());
+            None
+        }
+        let mut done = BTreeSet::new();
+        for m in edges.keys() {
+            if let Some(cycle) = visit(m, &edges, &mut Vec::new(), &mut done) {
+                panic!("{name}: module cycle {}", cycle.join(" -> "));
+            }
+        }
+    }
+}
+
+#[test]
+fn no_source_file_is_over_600_lines() {
+    let mut long = Vec::new();
+    for top in ["sim", "robots", "tests"] {
+        for f in sources(&repo().join(top)) {
+            let lines = std::fs::read_to_string(&f).unwrap().lines().count();
+            if lines > 600 {
+                long.push(format!("{} ({lines})", f.display()));
+            }
+        }
+    }
+    assert!(long.is_empty(), "files over 600 lines: {long:?}");
+}
+
+#[test]
+fn the_reference_scanner_sees_paths_and_groups() {
+    let refs = crate_references(
+        "use crate::{a::X, b};\nlet y = crate::c::f(); crate::Type;\n/// see [`crate::d`]",
+    );
+    assert_eq!(
+        refs.into_iter().collect::<Vec<_>>(),
+        vec!["a".to_string(), "b".into(), "c".into()]
+    );
 }

@@ -1,9 +1,9 @@
 //! Same inputs, same digest: across repeated runs, thread counts, and against a golden value.
 
 use hetsim_engine::RunOptions;
-use hetsim_engine::{run, write_run};
+use hetsim_eval::{write_run, Metrics};
 use hetsim_scene::{load_scenario, LoadOptions};
-use hetsim_tests::{hetsim, printed_digest, repo};
+use hetsim_tests::{hetsim, printed_digest, repo, run_scenario};
 
 fn digest_of(scenario: &str, seed: u64, secs: f64) -> String {
     let s = load_scenario(
@@ -14,11 +14,13 @@ fn digest_of(scenario: &str, seed: u64, secs: f64) -> String {
         },
     )
     .unwrap();
-    let result = run(&s, |_, _| {}, RunOptions::default()).unwrap();
+    let result = run_scenario(&s, RunOptions::default());
+    let metrics = Metrics::compute(&s, &result, None).unwrap();
     let dir = tempfile::tempdir().unwrap();
     write_run(
         &s,
         result,
+        &metrics,
         Some(&dir.path().join("run")),
         serde_json::json!({}),
         None,

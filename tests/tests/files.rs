@@ -202,7 +202,6 @@ fn the_village_has_two_building_groups_and_the_rover_starts_in_the_north_west_on
 
 #[test]
 fn in_the_village_the_rover_rides_the_terrain_and_the_helicopter_holds_40_m() {
-    use hetsim_engine::run;
     let s = load_scenario(
         &repo().join("scenarios/village.toml"),
         &LoadOptions {
@@ -211,7 +210,7 @@ fn in_the_village_the_rover_rides_the_terrain_and_the_helicopter_holds_40_m() {
         },
     )
     .unwrap();
-    let result = run(&s, |_, _| {}, RunOptions::default()).unwrap();
+    let result = hetsim_tests::run_scenario(&s, RunOptions::default());
     let terrain = s.world.terrain.as_ref().unwrap();
     let (_, dala) = &result.truth[0];
     let (_, ressac) = &result.truth[1];
@@ -229,7 +228,7 @@ fn in_the_village_the_rover_rides_the_terrain_and_the_helicopter_holds_40_m() {
         let z = pose.translation.z;
         assert!((z - 40.0).abs() < 3.0, "helicopter at {z} m at {stamp} ns");
     }
-    let travelled = result.metrics.robots[1].distance_m;
+    let travelled = result.robots[1].distance_m;
     // Cruise is 6 m/s; accelerating and turning at the leg ends costs some of that.
     assert!(travelled > 400.0, "helicopter flew {travelled} m in 120 s");
     assert_eq!(

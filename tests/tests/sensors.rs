@@ -2,7 +2,6 @@
 
 use hetsim_core::Streams;
 use hetsim_engine::record::Recorder;
-use hetsim_engine::run;
 use hetsim_engine::RunOptions;
 use hetsim_msgs::{yaw_of, SensorMsg};
 use hetsim_physics::Physics;
@@ -264,7 +263,7 @@ fn wheel_odometry_overestimates_distance_by_the_slip() {
         "width_m = 20.0\nheight_m = 4.0\nspacing_m = 0.5",
         "[[robots]]\nname = \"c\"\nmodel = \"ctbot\"\nstart = { x = -9.25, y = 0.25 }\nmission = { kind = \"waypoints\", points = [[8.0, 0.25]] }\noverrides = { \"sensors.encoders.scale_sigma\" = 0.0, \"sensors.encoders.noise_per_m\" = 0.0, \"body.wheels.speed_noise\" = 0.0 }\n",
     );
-    let result = run(&s, |_, _| {}, RunOptions::default()).unwrap();
+    let result = hetsim_tests::run_scenario(&s, RunOptions::default());
     let truth = &result.truth[0].1;
     let travelled: f64 = truth
         .windows(2)
@@ -316,15 +315,13 @@ fn a_recorded_run_reads_back_with_the_expected_topics_and_counts() {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("lab.mcap");
     let mut rec = Recorder::create(&path).unwrap();
-    let result = run(
+    let result = hetsim_tests::run_scenario(
         &s,
-        |_, _| {},
         RunOptions {
             recorder: Some(&mut rec),
             ..RunOptions::default()
         },
-    )
-    .unwrap();
+    );
     rec.finish().unwrap();
     assert!(!dir.path().join("lab.mcap.partial").exists());
     let bytes = std::fs::read(&path).unwrap();
@@ -348,7 +345,7 @@ fn a_recorded_run_reads_back_with_the_expected_topics_and_counts() {
         "23 Hz rounds to 4 ticks = 25 Hz at dt = 10 ms"
     );
     assert_eq!(counts["/child2/cmd"], 1000);
-    for (topic, n) in &result.metrics.messages {
+    for (topic, n) in &result.messages {
         if !topic.ends_with("/truth") {
             assert_eq!(counts[&format!("/{topic}")], *n, "{topic}");
         }

@@ -133,9 +133,12 @@ fn run_sequence(frames: usize, lines: bool) -> Sequence {
             }
         }
     }
-    let t = stack.trajectories();
+    let t = stack.artifacts();
     let end = |kind: &str| {
-        let poses = &t.iter().find(|(k, _)| k == kind).unwrap().1;
+        let poses = match &t.iter().find(|a| a.name == kind).unwrap().data {
+            hetsim_msgs::ArtifactData::Trajectory(poses) => poses,
+            other => panic!("{kind} is not a trajectory: {other:?}"),
+        };
         assert_eq!(poses.len(), frames + 1, "{kind}: a pose per frame");
         (poses.last().unwrap().1.translation.vector - truth).norm()
     };
@@ -146,7 +149,7 @@ fn run_sequence(frames: usize, lines: bool) -> Sequence {
         submaps: stack.submaps(),
         segments: segments.len(),
         segment_depth_errors,
-        counters: stack.slam_report().unwrap().counters,
+        counters: stack.report().unwrap().counters,
     }
 }
 

@@ -1,8 +1,8 @@
 //! Sweeps give the same files whatever the job count, sharding or interruption; regression
 //! catches moved metrics.
 
-use hetsim_engine::regress::{regress, Baseline};
-use hetsim_engine::sweep::{load_sweep, merge, run_sweep};
+use hetsim_eval::regress::{regress, Baseline};
+use hetsim_eval::sweep::{load_sweep, merge, run_sweep};
 use hetsim_tests::{hetsim, repo};
 use std::path::Path;
 
@@ -72,7 +72,7 @@ fn jobs_shards_and_resuming_give_the_same_files() {
         "finished rows are not redone"
     );
     std::fs::write(&row0, original).unwrap();
-    hetsim_engine::sweep::summarize(&sweep, &a).unwrap();
+    hetsim_eval::sweep::summarize(&sweep, &a).unwrap();
     assert_eq!(outputs(&one), outputs(&a));
 }
 
@@ -102,13 +102,13 @@ fn bad_sweep_files_are_refused_with_the_place() {
         "schema_version = 1\nname = \"x\"\nbase = \"nope.toml\"\nseeds = 2\n[axes]\n",
     )
     .unwrap();
-    let e = load_sweep(&path).unwrap_err();
+    let e = load_sweep(&path).unwrap_err().to_string();
     assert!(
         e.contains("bad.toml") && e.contains("base") && e.contains("nope.toml"),
         "{e}"
     );
     std::fs::write(&path, format!("schema_version = 1\nname = \"x\"\nbase = \"{}\"\nseeds = 2\n[axes]\n\"world.indoor.obstruction_ratio\" = [0.9]\n", repo().join("scenarios/lab.toml").display())).unwrap();
-    let e = load_sweep(&path).unwrap_err();
+    let e = load_sweep(&path).unwrap_err().to_string();
     assert!(
         e.contains("obstruction_ratio") && e.contains("0.9") && e.contains("[0, 0.6]"),
         "{e}"
@@ -118,7 +118,7 @@ fn bad_sweep_files_are_refused_with_the_place() {
         "schema_version = 1\nname = \"x\"\nbase = \"a.toml\"\nseedz = 2\n[axes]\n",
     )
     .unwrap();
-    let e = load_sweep(&path).unwrap_err();
+    let e = load_sweep(&path).unwrap_err().to_string();
     assert!(e.contains("bad.toml:4") && e.contains("seedz"), "{e}");
 }
 

@@ -1,7 +1,7 @@
 //! The cooperative mapping mission of seed 002 run in lockstep: the parent teleoperates the
 //! children, the children image the vertices, and the images localize.
 
-use hetsim_engine::localize::load_database;
+use hetsim_eval::localize::load_database;
 use hetsim_render::{CameraView, Intrinsics, RenderOptions, Renderer};
 use hetsim_scene::{load_scenario, LoadOptions};
 use hetsim_tests::{hetsim, printed_digest, repo};

@@ -35,14 +35,17 @@
 //!   whose reply does not come is ordered again; see [`crate::team`].
 
 use crate::map::{Map, Vertex};
+use crate::report::{DatabaseImage, TeamReport, TEAM_ARTIFACT};
 use crate::team::{Order, TeamMsg};
 use crate::visibility::line_of_sight;
 use crate::{plan, CoverageParams, Direction, Plan};
 use hetsim_msgs::{
-    Command, CoverageMission, DatabaseImage, Mission, Outgoing, Pose, PoseStamped, RobotStack,
-    SensorMsg, StackStatus, TeamReport,
+    Artifact, Command, CoverageMission, Mission, Outgoing, Pose, PoseStamped, RobotStack,
+    SensorMsg, StackStatus,
 };
 use hetsim_pilot::{GroundPilot, GroundPilotParams};
+
+mod teleop;
 
 /// Tuning of the parent's teleoperation.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -242,273 +245,6 @@ impl ParentStack {
             .grid
             .cell_of(p[0], p[1])
             .and_then(|(c, r)| self.map.at(c as i64, r as i64))
-    }
-
-    fn order(&mut self, i: usize, order: Order) {
-        let child = &mut self.children[i];
-        child.seq += 1;
-        child.order = Some(order);
-        child.acked = false;
-        child.sent_ns = self.now_ns;
-        let msg = TeamMsg::Order {
-            seq: child.seq,
-            order,
-        };
-        self.outbox.push(msg.to(&child.name));
-    }
-
-    fn resend(&mut self, i: usize) {
-        let child = &mut self.children[i];
-        if let Some(order) = child.order {
-            child.sent_ns = self.now_ns;
-            self.report.resent_orders += 1;
-            let msg = TeamMsg::Order {
-                seq: child.seq,
-                order,
-            };
-            self.outbox.push(msg.to(&child.name));
-        }
-    }
-
-    fn tracked(&self, i: usize) -> bool {
-        self.children[i]
-            .last_fix_ns
-            .is_some_and(|t| self.now_ns.saturating_sub(t) <= self.params.track_timeout_ns)
-    }
-
-    /// Whether the parent should see child `i` where it believes the child is.
-    fn expected_in_view(&self, i: usize) -> bool {
-        let Some(pose) = self.pose else {
-            return false;
-        };
-        let here = [pose.translation.vector.x, pose.translation.vector.y];
-        let est = self.children[i].estimate;
-        if dist(here, est) > self.coverage.r_los_m - 0.15 {
-            return false;
-        }
-        match (self.vertex_at(here), self.vertex_at(est)) {
-            (Some(a), Some(b)) => line_of_sight(&self.map, a, b),
-            _ => false,
-        }
-    }
-
-    /// Orders child `i` towards `goal`; returns when the drive should be over (a half turn
-    /// at the child's slowest turn rate, the drive, and two seconds of radio and margin).
-    fn drive_towards(&mut self, i: usize, goal: [f64; 2]) -> u64 {
-        let est = self.children[i].estimate;
-        let heading = (goal[1] - est[1]).atan2(goal[0] - est[0]);
-        let d = dist(goal, est);
-        self.order(
-            i,
-            Order::Drive {
-                heading_rad: heading,
-                distance_m: d,
-            },
-        );
-        let secs = std::f64::consts::PI / 0.25 + d / self.mission.child_speed_mps.max(0.01) + 2.0;
-        self.now_ns + (secs * 1e9) as u64
-    }
-
-    fn handle_reply(&mut self, i: usize, msg: TeamMsg) {
-        let seq = self.children[i].seq;
-        match msg {
-            TeamMsg::Ack { seq: s } if s == seq => self.children[i].acked = true,
-            TeamMsg::Done {
-                seq: s,
-                driven_m,
-                heading_rad,
-            } if s == seq => {
-                self.children[i].acked = true;
-                let Task::Move {
-                    goal,
-                    corrections,
-                    from,
-                    ..
-                } = self.children[i].task.clone()
-                else {
-                    return;
-                };
-                if !self.tracked(i) {
-                    // Out of view: dead reckoning from where the drive started (tracks seen
-                    // during the drive are part of what it drove).
-                    let e = &mut self.children[i].estimate;
-                    *e = [
-                        from[0] + driven_m * heading_rad.cos(),
-                        from[1] + driven_m * heading_rad.sin(),
-                    ];
-                    if dist(*e, goal) <= self.params.arrive_m || corrections >= 3 {
-                        self.children[i].task = Task::Idle;
-                        self.children[i].order = None;
-                    } else {
-                        self.start_move(i, goal, corrections + 1);
-                    }
-                    return;
-                }
-                let off = dist(self.children[i].estimate, goal);
-                if off <= self.params.arrive_m || corrections >= 3 {
-                    if off > 2.0 * self.params.arrive_m {
-                        // Blocked (by a robot out of place, or furniture): go on from here.
-                        if let Some(v) = self.vertex_at(goal) {
-                            let cell = self.map.cell(v);
-                            self.report.abandoned.push(cell);
-                        }
-                    }
-                    self.children[i].task = Task::Idle;
-                    self.children[i].order = None;
-                } else {
-                    self.start_move(i, goal, corrections + 1);
-                }
-            }
-            TeamMsg::Grabbed {
-                seq: s,
-                vertex,
-                heading_rad,
-                image,
-            } if s == seq => {
-                let Task::Grab { fixes, .. } = &self.children[i].task else {
-                    return;
-                };
-                let estimated_xy = if fixes.is_empty() {
-                    self.children[i].estimate
-                } else {
-                    let n = fixes.len() as f64;
-                    [
-                        fixes.iter().map(|f| f[0]).sum::<f64>() / n,
-                        fixes.iter().map(|f| f[1]).sum::<f64>() / n,
-                    ]
-                };
-                self.report.database.push(DatabaseImage {
-                    vertex,
-                    child: self.children[i].name.clone(),
-                    estimated_xy,
-                    estimated_heading_rad: heading_rad,
-                    image,
-                });
-                self.children[i].task = Task::Idle;
-                self.children[i].order = None;
-                self.children[i].acked = true;
-            }
-            _ => {}
-        }
-    }
-
-    fn start_move(&mut self, i: usize, goal: [f64; 2], corrections: u32) {
-        self.children[i].planned = goal;
-        let from = self.children[i].estimate;
-        let d = dist(from, goal);
-        let due_ns = self.drive_towards(i, goal);
-        self.children[i].task = Task::Move {
-            goal,
-            reaimed: d < self.params.reaim_m,
-            corrections,
-            due_ns,
-            from,
-            blind: false,
-        };
-    }
-
-    /// Per-tick supervision of child `i`.
-    fn supervise(&mut self, i: usize) {
-        let now = self.now_ns;
-        let tracked = self.tracked(i);
-        match self.children[i].task.clone() {
-            Task::Idle => {
-                // Back in view after open-loop moves, and not where the plan has it: drive it
-                // there before anything else happens to it.
-                let planned = self.children[i].planned;
-                if tracked && dist(self.children[i].estimate, planned) > 2.0 * self.params.arrive_m
-                {
-                    self.start_move(i, planned, 0);
-                }
-            }
-            Task::Move {
-                goal,
-                reaimed,
-                corrections,
-                due_ns,
-                blind,
-                ..
-            } => {
-                if !tracked
-                    && !blind
-                    && self.expected_in_view(i)
-                    && self.children[i]
-                        .last_fix_ns
-                        .is_some_and(|t| now.saturating_sub(t) > self.params.lost_after_ns)
-                {
-                    self.report.tracking_losses += 1;
-                    self.order(i, Order::Stop);
-                    self.children[i].task = Task::Lost {
-                        goal,
-                        since_ns: now,
-                        corrections,
-                    };
-                    return;
-                }
-                if tracked
-                    && !reaimed
-                    && dist(self.children[i].estimate, goal) < self.params.reaim_m
-                {
-                    let from = self.children[i].estimate;
-                    let due_ns = self.drive_towards(i, goal);
-                    self.children[i].task = Task::Move {
-                        goal,
-                        reaimed: true,
-                        corrections,
-                        due_ns,
-                        from,
-                        blind,
-                    };
-                    return;
-                }
-                // A drive that should be over. In view, the child is stuck (against furniture,
-                // its encoders not turning): drive it again from where it is. Out of view, its
-                // report was lost on the radio: repeat the order, which the child answers with
-                // its report again.
-                if now > due_ns {
-                    if tracked {
-                        self.start_move(i, goal, corrections + 1);
-                    } else {
-                        self.resend(i);
-                        if let Task::Move { due_ns, .. } = &mut self.children[i].task {
-                            *due_ns = now + 1_000_000_000;
-                        }
-                    }
-                }
-            }
-            Task::Lost {
-                goal,
-                since_ns,
-                corrections,
-            } => {
-                if tracked {
-                    self.start_move(i, goal, corrections);
-                } else if now.saturating_sub(since_ns) > self.params.reacquire_ns {
-                    // Not found again: the child stopped within a few centimetres of its
-                    // last track; drive it on open loop from there.
-                    self.start_move(i, goal, corrections);
-                    if let Task::Move { blind, .. } = &mut self.children[i].task {
-                        *blind = true;
-                    }
-                }
-            }
-            Task::Grab { sent_ns, .. } => {
-                if now.saturating_sub(sent_ns) > 5_000_000_000 {
-                    // No image: ask again (the child answers a repeated grab with the image
-                    // it took, or goes on taking one).
-                    self.resend(i);
-                    if let Task::Grab { sent_ns, .. } = &mut self.children[i].task {
-                        *sent_ns = now;
-                    }
-                }
-            }
-        }
-        if !self.children[i].acked
-            && self.children[i].order.is_some()
-            && now.saturating_sub(self.children[i].sent_ns) > self.params.resend_ns
-        {
-            self.resend(i);
-        }
     }
 
     fn idle(&self) -> bool {
@@ -734,6 +470,9 @@ impl RobotStack for ParentStack {
             goals_reached: self.report.steps_done,
             goals_total: self.report.steps_total,
             goals_skipped: 0,
+            // The tracker does the parent's seeing; no stored panoramas.
+            wants_images: false,
+            mission_over: self.report.finished_ns.is_some(),
         }
     }
 
@@ -741,22 +480,21 @@ impl RobotStack for ParentStack {
         std::mem::take(&mut self.outbox)
     }
 
-    fn wants_images(&self) -> bool {
-        // The tracker does the parent's seeing; no stored panoramas.
-        false
+    fn artifacts(&self) -> Vec<Artifact> {
+        vec![Artifact::report(TEAM_ARTIFACT, &self.team_report())]
     }
+}
 
-    fn mission_over(&self) -> bool {
-        self.report.finished_ns.is_some()
-    }
-
-    fn team_report(&self) -> Option<TeamReport> {
+impl ParentStack {
+    /// The mission's report: the plan's figures, the image database and the children's paths
+    /// as the tracker measured them.
+    pub fn team_report(&self) -> TeamReport {
         let mut r = self.report.clone();
         r.tracked_paths = self
             .children
             .iter()
             .map(|c| (c.name.clone(), c.path.clone()))
             .collect();
-        Some(r)
+        r
     }
 }

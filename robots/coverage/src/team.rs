@@ -370,15 +370,14 @@ impl RobotStack for ChildStack {
     }
 
     fn status(&self) -> StackStatus {
-        self.status
+        StackStatus {
+            wants_images: matches!(self.phase, Phase::Settling { .. }),
+            ..self.status
+        }
     }
 
     fn outbox(&mut self) -> Vec<Outgoing> {
         std::mem::take(&mut self.outbox)
-    }
-
-    fn wants_images(&self) -> bool {
-        matches!(self.phase, Phase::Settling { .. })
     }
 }
 
@@ -534,9 +533,9 @@ mod tests {
                 ),
             ],
         );
-        assert!(!c.wants_images() || c.phase != Phase::Idle);
+        assert!(!c.status().wants_images || c.phase != Phase::Idle);
         c.step(10, &[compass(0.01)]);
-        assert!(c.wants_images());
+        assert!(c.status().wants_images);
         let img = |stamp_ns| {
             SensorMsg::Image(Image {
                 stamp_ns,
@@ -556,6 +555,6 @@ mod tests {
             matches!(&r[..], [TeamMsg::Grabbed { seq: 3, vertex: (4, 2), image, .. }] if image.stamp_ns == 500_000_000),
             "{r:?}"
         );
-        assert!(!c.wants_images());
+        assert!(!c.status().wants_images);
     }
 }

@@ -22,8 +22,8 @@ mod stack;
 pub use command::Command;
 pub use geometry::{pose_from_xyz_rpy, wrap_angle, yaw_of, Pose};
 pub use message::{
-    ChildTracks, CompassReading, CoverageMission, DatabaseImage, Delivered, GpsFix, Image,
-    ImageMatch, ImuSample, LaserScan, Mission, OccupancyGrid, Outgoing, PoseStamped, Rendezvous,
-    SensorMsg, SlamEvent, SlamReport, TeamReport, Track, WheelOdometry,
+    ChildTracks, CompassReading, CoverageMission, Delivered, GpsFix, Image, ImageMatch, ImuSample,
+    LaserScan, Mission, OccupancyGrid, Outgoing, PoseStamped, Rendezvous, SensorMsg, Track,
+    WheelOdometry,
 };
-pub use stack::{RobotStack, StackStatus};
+pub use stack::{Artifact, ArtifactData, RobotStack, StackStatus};

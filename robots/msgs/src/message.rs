@@ -114,52 +114,6 @@ pub struct CoverageMission {
     pub child_speed_mps: f64,
 }
 
-/// One image of a coverage mission's database, as the parent stored it.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct DatabaseImage {
-    /// The grid vertex `(col, row)` it was taken at.
-    pub vertex: (usize, usize),
-    /// The child that took it.
-    pub child: String,
-    /// The parent's estimate of the grab position (tracker), metres.
-    pub estimated_xy: [f64; 2],
-    /// The child's compass heading at the grab, radians.
-    pub estimated_heading_rad: f64,
-    /// The image (its stamp is the grab time).
-    pub image: Image,
-}
-
-/// Positions of a robot over time: `(stamp_ns, [x, y])`, metres.
-pub type TrackedPath = Vec<(u64, [f64; 2])>;
-
-/// What a coverage parent reports at the end of a run.
-#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
-pub struct TeamReport {
-    /// Free vertices of the map |V|.
-    pub vertices: usize,
-    /// Parent vertices V_p in tour order, `(col, row)`.
-    pub parent_vertices: Vec<(usize, usize)>,
-    /// Vertices the plan could not image (uncoverable or unreached), `(col, row)`.
-    pub unplanned: Vec<(usize, usize)>,
-    /// Goals a tracked child could not be brought within twice the arrival distance of after
-    /// three corrections (blocked), `(col, row)`; the mission goes on from where it is.
-    pub abandoned: Vec<(usize, usize)>,
-    /// The image database.
-    pub database: Vec<DatabaseImage>,
-    /// Times a child expected in view was not tracked and had to be stopped.
-    pub tracking_losses: u32,
-    /// Orders sent again because no acknowledgement came.
-    pub resent_orders: u32,
-    /// When the last step of the plan was done, nanoseconds; `None` while unfinished.
-    pub finished_ns: Option<u64>,
-    /// Steps of the plan (timesteps) executed, and in the plan.
-    pub steps_done: usize,
-    /// Steps of the plan.
-    pub steps_total: usize,
-    /// Every child's positions as the parent's tracker measured them.
-    pub tracked_paths: Vec<(String, TrackedPath)>,
-}
-
 /// A compass heading.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct CompassReading {
@@ -284,37 +238,6 @@ pub struct ImageMatch {
     pub sigma_m: f64,
     /// Standard deviation of the relative attitude, radians (each axis).
     pub sigma_rad: f64,
-}
-
-/// An event of a SLAM stack's global level, with the robot's estimate of its own pose
-/// just before and just after the graph was optimized with it.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct SlamEvent {
-    /// `"gps"`, `"rendezvous"` or `"image_match"`.
-    pub kind: String,
-    /// The frame at which it happened, nanoseconds.
-    pub stamp_ns: u64,
-    /// The other robot (empty for a GPS fix).
-    pub other: String,
-    /// The robot's world pose estimate before.
-    pub before: Pose,
-    /// And after.
-    pub after: Pose,
-}
-
-/// What a SLAM stack built, for the evaluation: sub-map origins with covariance, the
-/// covariance of every pose of its `slam` trajectory, and its events.
-#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
-pub struct SlamReport {
-    /// Its sub-map origins: stamp, optimized world pose, marginal covariance of the right
-    /// perturbation `(δt, δθ)` (6 x 6, column-major).
-    pub origins: Vec<(u64, Pose, Vec<f64>)>,
-    /// Covariance of each pose of the `slam` trajectory, in its order (same convention).
-    pub covariances: Vec<Vec<f64>>,
-    /// Events in order.
-    pub events: Vec<SlamEvent>,
-    /// Counters (observations used and gated, shares sent and received, unresolved links).
-    pub counters: std::collections::BTreeMap<String, u64>,
 }
 
 /// A camera image.

@@ -91,6 +91,7 @@ impl RobotStack for HeliPilot {
             goals_reached: self.next.min(self.route.len()),
             goals_total: self.route.len(),
             goals_skipped: 0,
+            ..StackStatus::default()
         }
     }
 }

@@ -16,6 +16,7 @@
 //!   loop closure, compounding with covariance;
 //! * [`global`]: the team's graph on each robot: its own part, the parts received over the
 //!   radio, event links (rendezvous, image matching) resolved by origin stamps;
+//! * [`report`]: what the stack publishes for evaluation (origins, covariances, events);
 //! * [`stack`]: the robot stack: stereo VO, points and segments tracked in the local maps in
 //!   lockstep, sub-maps every 100 landmarks, events and the radio;
 //!
@@ -28,4 +29,5 @@ pub mod graph;
 pub mod idp;
 pub mod lines;
 pub mod quat;
+pub mod report;
 pub mod stack;

@@ -51,9 +51,10 @@ use crate::ekf::{LocalMap, Update};
 use crate::global::{relative_info, Fix, Global, Link, Share};
 use crate::idp::Sensor;
 use crate::lines::LinePrior;
+use crate::report::{SlamEvent, SlamReport, REPORT_ARTIFACT};
 use hetsim_msgs::{
-    Command, Delivered, Image, ImageMatch, Outgoing, Pose, Rendezvous, RobotStack, SensorMsg,
-    SlamEvent, SlamReport, StackStatus,
+    Artifact, ArtifactData, Command, Delivered, Image, ImageMatch, Outgoing, Pose, Rendezvous,
+    RobotStack, SensorMsg, StackStatus,
 };
 use hetsim_vision::harris::{detect, select_new, Corner};
 use hetsim_vision::matching::{search_ellipse, Patch};
@@ -63,6 +64,10 @@ use hetsim_vision::vo::StereoVo;
 use hetsim_vision::Gray;
 use nalgebra::{Matrix3, Matrix6, Vector2, Vector3};
 use std::collections::BTreeMap;
+
+mod landmarks;
+
+mod events;
 
 /// The radio topic of a robot's part of the graph.
 pub const SHARE_TOPIC: &str = "slam/graph";
@@ -420,404 +425,6 @@ impl SlamStack {
             .push((left.stamp_ns, self.vo_pose.expect("set above")));
     }
 
-    fn observe(&mut self, img: &Gray) {
-        let sigma = self.params.sigma_px;
-        let mut k = 0;
-        while k < self.map.points.len() {
-            let Some((pr, s)) = self.map.predict_point(&self.sensor, k, sigma) else {
-                k += 1;
-                continue;
-            };
-            let inside = pr.pixel.x >= 6.0
-                && pr.pixel.y >= 6.0
-                && pr.pixel.x < img.width as f64 - 7.0
-                && pr.pixel.y < img.height as f64 - 7.0;
-            if !inside || s[(0, 0)].max(s[(1, 1)]).sqrt() > self.params.max_search_px {
-                k += 1;
-                continue;
-            }
-            self.map.points[k].searched += 1;
-            let found = search_ellipse(
-                img,
-                &self.patches[&self.map.points[k].id],
-                [pr.pixel.x, pr.pixel.y],
-                [[s[(0, 0)], s[(0, 1)]], [s[(1, 0)], s[(1, 1)]]],
-                9.21,
-                0.8,
-            );
-            if let Some(m) = found {
-                match self
-                    .map
-                    .update(&self.sensor, k, &Vector2::new(m.x, m.y), sigma, 9.21)
-                {
-                    Some(Update::Accepted) => {
-                        self.map.points[k].found += 1;
-                        self.updates.0 += 1;
-                    }
-                    Some(Update::Gated(_)) => self.updates.1 += 1,
-                    None => {}
-                }
-            }
-            k += 1;
-        }
-        if self.params.lines {
-            self.observe_lines(img);
-        }
-        self.map.symmetrize();
-        for id in self.map.prune(self.params.min_searches) {
-            self.patches.remove(&id);
-        }
-    }
-
-    /// The camera's pose in the local map.
-    fn camera_pose(&self) -> Pose {
-        self.map.pose() * self.body_from_camera
-    }
-
-    /// Line `j`'s segment predicted into the image and clipped to it.
-    fn predict_segment(&self, j: usize, img: &Gray) -> Option<Segment> {
-        let [p, q] = self.map.line_endpoints(j);
-        let seg = segments::project_segment(
-            &self.sensor.camera,
-            &self.camera_pose(),
-            &p.into(),
-            &q.into(),
-            0.5,
-        )?;
-        let margin = 3.0;
-        seg.clipped(
-            [margin, margin],
-            [
-                img.width as f64 - 1.0 - margin,
-                img.height as f64 - 1.0 - margin,
-            ],
-        )
-    }
-
-    /// Tracks the lines and updates the map with them.
-    fn observe_lines(&mut self, img: &Gray) {
-        let sigma = self.params.sigma_px;
-        let tracking = segments::TrackParams::default();
-        self.seen_segments.clear();
-        for j in 0..self.map.lines.len() {
-            let Some(predicted) = self.predict_segment(j, img) else {
-                continue;
-            };
-            if predicted.length() < 4.0 * tracking.spacing_px {
-                continue;
-            }
-            self.seen_segments.push(predicted);
-            let (a, b) = (Vector2::from(predicted.a), Vector2::from(predicted.b));
-            let Some(pr) = self.map.predict_line(&self.sensor, j, &a, &b, sigma) else {
-                continue;
-            };
-            let spread = pr.s[(0, 0)].max(pr.s[(1, 1)]).sqrt();
-            if spread > self.params.max_search_px {
-                continue;
-            }
-            self.map.lines[j].searched += 1;
-            let params = segments::TrackParams {
-                search_px: (3.0 * spread).clamp(3.0, tracking.search_px),
-                ..tracking
-            };
-            let Some(seen) = segments::track(img, &predicted, &params) else {
-                continue;
-            };
-            let (e1, e2) = (Vector2::from(seen.a), Vector2::from(seen.b));
-            match self.map.update_line(&self.sensor, j, &e1, &e2, sigma, 9.21) {
-                Some(Update::Accepted) => {
-                    self.map.lines[j].found += 1;
-                    self.map.extend_line(&self.sensor, j, &e1, &e2);
-                    *self.seen_segments.last_mut().expect("pushed above") = seen;
-                    self.count("line_observations_used", 1);
-                }
-                Some(Update::Gated(_)) => self.count("line_observations_gated", 1),
-                None => {}
-            }
-        }
-    }
-
-    /// New lines from detected segments that no tracked line covers.
-    fn add_lines(&mut self, img: &Gray) {
-        if self.seen_segments.len() >= self.params.max_visible_lines
-            // The frames before this one are in the trajectory.
-            || self.trajectory.len() % self.params.line_detect_period as usize != 0
-        {
-            return;
-        }
-        let detect = segments::DetectParams {
-            min_length: self.params.min_line_px * img.width as f64 / 1024.0,
-            ..Default::default()
-        };
-        let mut found = segments::detect(img, &detect);
-        // The longest first.
-        found.sort_by(|x, y| y.length().total_cmp(&x.length()));
-        for seg in found {
-            if self.seen_segments.len() >= self.params.max_visible_lines
-                || self.map.landmarks() >= self.params.max_landmarks
-            {
-                break;
-            }
-            if self.seen_segments.iter().any(|t| covers(t, &seg)) {
-                continue;
-            }
-            let id = self.next_id;
-            let (a, b) = (Vector2::from(seg.a), Vector2::from(seg.b));
-            let added = self.map.add_line(
-                &self.sensor,
-                &a,
-                &b,
-                self.params.sigma_px,
-                &self.params.line_prior,
-                id,
-            );
-            if added.is_some() {
-                self.next_id += 1;
-                self.seen_segments.push(seg);
-                self.count("lines_initialized", 1);
-            }
-        }
-    }
-
-    fn add_points(&mut self, img: &Gray) {
-        // Where the current points are seen, for the 3 x 3 partition.
-        let tracked: Vec<[f64; 2]> = (0..self.map.points.len())
-            .filter_map(|k| {
-                crate::idp::project(
-                    &self.sensor,
-                    &self.map.position(),
-                    &self.map.quaternion(),
-                    &self.map.point(k),
-                )
-                .map(|p| [p.pixel.x, p.pixel.y])
-            })
-            .filter(|p| {
-                p[0] >= 0.0 && p[1] >= 0.0 && p[0] < img.width as f64 && p[1] < img.height as f64
-            })
-            .collect();
-        let corners: Vec<Corner> = detect(img, 0.01, 8);
-        let chosen = select_new(
-            &corners,
-            img.width,
-            img.height,
-            &tracked,
-            self.params.per_region,
-            15.0,
-        );
-        for c in chosen {
-            if self.map.landmarks() >= self.params.max_landmarks {
-                break;
-            }
-            let Some(patch) = Patch::at(img, c.x, c.y) else {
-                continue;
-            };
-            let id = self.next_id;
-            self.next_id += 1;
-            self.map.add_point(
-                &self.sensor,
-                &Vector2::new(c.x as f64, c.y as f64),
-                self.params.sigma_px,
-                self.params.rho_init,
-                self.params.sigma_rho,
-                id,
-            );
-            self.patches.insert(id, patch);
-        }
-    }
-
-    /// Closes the current sub-map at the frame `stamp`: the robot pose in it becomes the
-    /// relative transform to a new node, and a new local map starts there.
-    fn new_submap(&mut self, stamp: u64) {
-        let relative = self.map.pose();
-        // Information of the relative transform. The filter's own covariance comes from
-        // VO's, which only knows its random errors; the drift VO shows against the truth
-        // (1 to 6 % of the distance in the village) is systematic. The edge therefore gets a
-        // drift term of `edge_drift` of the distance travelled in the sub-map (each axis) and
-        // 0.1 degree per metre, so that GPS events can pull the origins back.
-        let d = relative.translation.vector.norm();
-        let (st, sr) = (
-            self.params.edge_drift * d + 1e-3,
-            (0.1f64.to_radians() * d).max(1e-4),
-        );
-        let cov = self.map.pose_covariance()
-            + Matrix6::from_diagonal(&nalgebra::Vector6::new(
-                st * st,
-                st * st,
-                st * st,
-                sr * sr,
-                sr * sr,
-                sr * sr,
-            ));
-        let info = cov.try_inverse().unwrap_or_else(Matrix6::identity);
-        let last = self.submaps() - 1;
-        self.closed_points.extend(
-            self.map
-                .euclidean_points()
-                .into_iter()
-                .map(|(_, p)| (last, p)),
-        );
-        self.closed_segments.extend(
-            self.map
-                .euclidean_segments(self.params.line_output_spread)
-                .into_iter()
-                .map(|(_, e)| (last, e)),
-        );
-        self.global
-            .as_mut()
-            .expect("a sub-map closes after the first pair")
-            .push(stamp, relative, info);
-        let open = self.open_origins[last] * relative;
-        self.open_origins.push(open);
-        self.map = LocalMap::new();
-        self.patches.clear();
-    }
-
-    /// The origin for an event at frame `stamp`: a new sub-map starts there (the seed starts
-    /// one after every event), unless one already started at this frame.
-    fn event_node(&mut self, stamp: u64) -> usize {
-        let g = self
-            .global
-            .as_ref()
-            .expect("events come after the first pair");
-        if g.own.stamps.last() != Some(&stamp) {
-            self.new_submap(stamp);
-        }
-        self.submaps() - 1
-    }
-
-    /// Optimizes the team's graph after an event and logs it; the part goes to the peers.
-    fn after_event(&mut self, kind: &str, other: &str, stamp: u64, before: Pose) {
-        let g = self
-            .global
-            .as_mut()
-            .expect("events come after the first pair");
-        g.optimize();
-        let after = self.world_pose();
-        self.events.push(SlamEvent {
-            kind: kind.to_string(),
-            stamp_ns: stamp,
-            other: other.to_string(),
-            before,
-            after,
-        });
-        self.last_event_ns = stamp;
-        self.share(stamp);
-    }
-
-    /// A GPS fix as an event (seed Section III): a new sub-map starts at the robot's pose, the
-    /// fix constrains its origin, and the graph is optimized.
-    fn gps_event(&mut self, fix: &hetsim_msgs::GpsFix, stamp: u64) {
-        let before = self.world_pose();
-        let node = self.event_node(stamp);
-        let s2 = fix.sigma_m * fix.sigma_m;
-        let offset = self.params.gps_offset;
-        self.global
-            .as_mut()
-            .expect("after the first pair")
-            .fix(Fix {
-                node,
-                offset,
-                position: Vector3::from(fix.position_m),
-                info: Matrix3::identity() / s2,
-            });
-        self.after_event("gps", "", stamp, before);
-    }
-
-    /// A link event (seed Sections III and V): the origin made now is linked to the other
-    /// robot's origin of stamp `link.1` by the measured `self_from_other` `z`, whose position
-    /// and rotation deviations are `sigmas`. For a rendezvous that is the origin the other
-    /// robot made at the same frame (it saw this robot too); for an image match, the past
-    /// origin whose frame matched.
-    fn link_event(
-        &mut self,
-        kind: &str,
-        link: (&str, u64),
-        z: Pose,
-        sigmas: (f64, f64),
-        stamp: u64,
-    ) {
-        let (other, other_stamp_ns) = link;
-        let before = self.world_pose();
-        let node = self.event_node(stamp);
-        self.global
-            .as_mut()
-            .expect("after the first pair")
-            .link(Link {
-                kind: kind.to_string(),
-                node,
-                other: other.to_string(),
-                other_stamp_ns,
-                z,
-                info: relative_info(sigmas.0, sigmas.1),
-            });
-        self.peers.insert(other.to_string());
-        self.after_event(kind, other, stamp, before);
-    }
-
-    /// Whether a link event of `kind` with `other` at `stamp_ns` is due: none with that
-    /// robot in the last `period_s`.
-    fn link_due(&self, kind: &'static str, other: &str, stamp_ns: u64, period_s: f64) -> bool {
-        self.last_link
-            .get(&(kind, other.to_string()))
-            .is_none_or(|t| stamp_ns >= t + (period_s * 1e9) as u64)
-    }
-
-    /// The closed sub-maps' landmarks and the current map's, with their sub-maps, through the
-    /// graph's origins by `place` (nothing before the first pair).
-    fn in_world<T: Copy, W>(
-        &self,
-        closed: &[(usize, T)],
-        current: impl Iterator<Item = T>,
-        place: impl Fn(&Pose, T) -> W,
-    ) -> Vec<(usize, W)> {
-        let Some(g) = self.global.as_ref() else {
-            return Vec::new();
-        };
-        let node = g.len() - 1;
-        closed
-            .iter()
-            .copied()
-            .chain(current.map(|x| (node, x)))
-            .map(|(k, x)| (k, place(&g.origin(k), x)))
-            .collect()
-    }
-
-    /// Sends this robot's part of the graph to every robot met.
-    fn share(&mut self, now_ns: u64) {
-        let Some(g) = self.global.as_ref() else {
-            return;
-        };
-        if !self.params.cooperative || self.peers.is_empty() {
-            return;
-        }
-        let payload = serde_json::to_vec(&g.own).expect("a share serializes");
-        for to in &self.peers {
-            self.outgoing.push(Outgoing {
-                to: to.clone(),
-                topic: SHARE_TOPIC.to_string(),
-                payload: payload.clone(),
-            });
-        }
-        self.count("shares_sent", self.peers.len() as u64);
-        self.last_share_ns = Some(now_ns);
-    }
-
-    /// Another robot's part arrived.
-    fn receive(&mut self, d: &Delivered) {
-        let Ok(share) = serde_json::from_slice::<Share>(&d.payload) else {
-            self.count("shares_malformed", 1);
-            return;
-        };
-        let Some(g) = self.global.as_mut() else {
-            return;
-        };
-        self.peers.insert(share.robot.clone());
-        if g.receive(share) {
-            g.optimize();
-        }
-        self.count("shares_received", 1);
-    }
-
     /// World poses of the frames through the graph's origins (`optimized`) or the open-loop
     /// ones.
     fn world_trajectory(&self, optimized: bool) -> Vec<(u64, Pose)> {
@@ -904,11 +511,36 @@ impl RobotStack for SlamStack {
         out
     }
 
-    fn keyframes(&self) -> &[u64] {
-        self.global.as_ref().map_or(&[], |g| &g.own.stamps)
+    fn artifacts(&self) -> Vec<Artifact> {
+        let mut out = self.inner.artifacts();
+        out.push(Artifact::trajectory("vo", self.vo_trajectory.clone()));
+        out.push(Artifact::trajectory("slam", self.world_trajectory(true)));
+        out.push(Artifact::trajectory(
+            "slam-open",
+            self.world_trajectory(false),
+        ));
+        out.push(Artifact {
+            name: "map".into(),
+            data: ArtifactData::Map {
+                points: self.map_points(),
+                segments: self.map_segments(),
+            },
+        });
+        if let Some(report) = self.report() {
+            out.push(Artifact::report(REPORT_ARTIFACT, &report));
+        }
+        out
     }
 
-    fn slam_report(&self) -> Option<SlamReport> {
+    fn oracle_keyframes(&self) -> &[u64] {
+        self.global.as_ref().map_or(&[], |g| &g.own.stamps)
+    }
+}
+
+impl SlamStack {
+    /// The global level's report for evaluation: origins with marginal covariance, the
+    /// covariance of every pose of the `slam` trajectory, events, counters.
+    pub fn report(&self) -> Option<SlamReport> {
         let g = self.global.as_ref()?;
         let marginals = g.own_covariances();
         let origins = (0..g.len())
@@ -943,14 +575,16 @@ impl RobotStack for SlamStack {
         })
     }
 
-    fn map_points(&self) -> Vec<(usize, [f64; 3])> {
+    /// Mapped points in the world frame, with their sub-map.
+    pub fn map_points(&self) -> Vec<(usize, [f64; 3])> {
         let current = self.map.euclidean_points().into_iter().map(|(_, p)| p);
         self.in_world(&self.closed_points, current, |origin, p| {
             to_world(origin, &p)
         })
     }
 
-    fn map_segments(&self) -> Vec<(usize, [[f64; 3]; 2])> {
+    /// Mapped segments in the world frame, with their sub-map.
+    pub fn map_segments(&self) -> Vec<(usize, [[f64; 3]; 2])> {
         let current = self
             .map
             .euclidean_segments(self.params.line_output_spread)
@@ -959,13 +593,5 @@ impl RobotStack for SlamStack {
         self.in_world(&self.closed_segments, current, |origin, e| {
             e.map(|p| to_world(origin, &p))
         })
-    }
-
-    fn trajectories(&self) -> Vec<(String, Vec<(u64, Pose)>)> {
-        let mut t = self.inner.trajectories();
-        t.push(("vo".to_string(), self.vo_trajectory.clone()));
-        t.push(("slam".to_string(), self.world_trajectory(true)));
-        t.push(("slam-open".to_string(), self.world_trajectory(false)));
-        t
     }
 }

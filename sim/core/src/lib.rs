@@ -9,9 +9,11 @@
 //!   changes another consumer's stream.
 //! * [`RunDigest`]: a SHA-256 over every message and output a run produces, in production
 //!   order. Same inputs, same digest.
+//! * [`files`]: atomic writes of output files and folders.
 
 mod clock;
 mod digest;
+pub mod files;
 mod streams;
 
 pub use clock::{SimClock, Tick};

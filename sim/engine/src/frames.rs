@@ -12,8 +12,39 @@
 
 use crate::cameras::Shot;
 use crate::output::tum_line;
+use hetsim_core::files::FileError;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
+
+/// Why a frame could not be written.
+#[derive(Debug, thiserror::Error)]
+pub enum FrameError {
+    /// A file could not be written.
+    #[error(transparent)]
+    Io(#[from] FileError),
+    /// An image could not be encoded.
+    #[error("{path}: {source}")]
+    Encode {
+        /// The file.
+        path: PathBuf,
+        /// What failed.
+        source: image::ImageError,
+    },
+    /// An image's bytes do not match its size.
+    #[error("{topic}: {what} of {width} x {height} does not match its {bytes} values")]
+    Size {
+        /// The camera.
+        topic: String,
+        /// `image` or `depth`.
+        what: &'static str,
+        /// Width, pixels.
+        width: u32,
+        /// Height, pixels.
+        height: u32,
+        /// Values given.
+        bytes: usize,
+    },
+}
 
 /// Which frames to write, and where.
 pub struct FrameDump {
@@ -69,44 +100,53 @@ impl FrameDump {
     }
 
     /// Writes one frame (image, depth, CSV and TUM lines; `sensor.yaml` the first time).
-    pub fn write(&mut self, shot: &Shot) -> Result<(), String> {
+    pub fn write(&mut self, shot: &Shot) -> Result<(), FrameError> {
         let rate_hz = shot.rate_hz;
         let (robot, camera) = folder(&shot.topic);
         let dir = self.root.join(&robot).join(&camera);
         let ns = shot.image.stamp_ns;
-        let io = |p: &Path, e: &dyn std::fmt::Display| format!("{}: {e}", p.display());
+        let (width, height) = (shot.image.width, shot.image.height);
+        let size = |what, bytes| FrameError::Size {
+            topic: shot.topic.clone(),
+            what,
+            width,
+            height,
+            bytes,
+        };
+        let encode = |path: &Path| {
+            let path = path.to_path_buf();
+            move |source| FrameError::Encode { path, source }
+        };
         if !self.csv.contains_key(&shot.topic) {
             for sub in ["data", "depth"] {
-                std::fs::create_dir_all(dir.join(sub)).map_err(|e| io(&dir.join(sub), &e))?;
+                let d = dir.join(sub);
+                std::fs::create_dir_all(&d).map_err(FileError::at(&d))?;
             }
             let yaml = sensor_yaml(shot, rate_hz);
-            std::fs::write(dir.join("sensor.yaml"), yaml).map_err(|e| io(&dir, &e))?;
+            let path = dir.join("sensor.yaml");
+            std::fs::write(&path, yaml).map_err(FileError::at(&path))?;
             self.csv
                 .insert(shot.topic.clone(), "#timestamp [ns],filename\n".to_string());
             self.rates.insert(shot.topic.clone(), rate_hz);
         }
         let name = format!("{ns}.png");
-        let img =
-            image::RgbImage::from_raw(shot.image.width, shot.image.height, shot.image.rgb.clone())
-                .ok_or("image size mismatch")?;
+        let img = image::RgbImage::from_raw(width, height, shot.image.rgb.clone())
+            .ok_or_else(|| size("image", shot.image.rgb.len()))?;
         let path = dir.join("data").join(&name);
         img.save_with_format(&path, image::ImageFormat::Png)
-            .map_err(|e| io(&path, &e))?;
+            .map_err(encode(&path))?;
         let mm: Vec<u16> = shot
             .depth_m
             .iter()
             .map(|d| (*d as f64 * 1000.0).round().clamp(0.0, 65535.0) as u16)
             .collect();
-        let depth = image::ImageBuffer::<image::Luma<u16>, Vec<u16>>::from_raw(
-            shot.image.width,
-            shot.image.height,
-            mm,
-        )
-        .ok_or("depth size mismatch")?;
+        let values = mm.len();
+        let depth = image::ImageBuffer::<image::Luma<u16>, Vec<u16>>::from_raw(width, height, mm)
+            .ok_or_else(|| size("depth", values))?;
         let path = dir.join("depth").join(&name);
         depth
             .save_with_format(&path, image::ImageFormat::Png)
-            .map_err(|e| io(&path, &e))?;
+            .map_err(encode(&path))?;
         self.csv
             .get_mut(&shot.topic)
             .expect("created above")
@@ -120,15 +160,13 @@ impl FrameDump {
     }
 
     /// Writes each camera's `data.csv` and TUM file.
-    pub fn finish(&self) -> Result<(), String> {
+    pub fn finish(&self) -> Result<(), FrameError> {
         for (topic, csv) in &self.csv {
             let (robot, camera) = folder(topic);
-            let dir = self.root.join(&robot).join(&camera);
-            std::fs::write(dir.join("data.csv"), csv)
-                .map_err(|e| format!("{}: {e}", dir.display()))?;
+            let path = self.root.join(&robot).join(&camera).join("data.csv");
+            std::fs::write(&path, csv).map_err(FileError::at(&path))?;
             let tum = self.root.join(&robot).join(format!("{camera}.tum"));
-            std::fs::write(&tum, &self.tum[topic])
-                .map_err(|e| format!("{}: {e}", tum.display()))?;
+            std::fs::write(&tum, &self.tum[topic]).map_err(FileError::at(&tum))?;
         }
         Ok(())
     }

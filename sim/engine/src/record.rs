@@ -103,6 +103,22 @@ fn base64(bytes: &[u8]) -> String {
     out
 }
 
+/// Why a recording could not be written.
+#[derive(Debug, thiserror::Error)]
+pub enum RecordError {
+    /// A file could not be created or moved.
+    #[error(transparent)]
+    Io(#[from] hetsim_core::files::FileError),
+    /// The MCAP writer failed.
+    #[error("{}: {source}", path.display())]
+    Mcap {
+        /// The file.
+        path: PathBuf,
+        /// What failed.
+        source: mcap::McapError,
+    },
+}
+
 /// Writes an MCAP file during a run.
 pub struct Recorder {
     writer: mcap::Writer<BufWriter<std::fs::File>>,
@@ -116,14 +132,18 @@ pub struct Recorder {
 
 impl Recorder {
     /// Starts a recording that will be at `path` once [`Recorder::finish`] succeeds.
-    pub fn create(path: &Path) -> Result<Self, String> {
+    pub fn create(path: &Path) -> Result<Self, RecordError> {
+        use hetsim_core::files::FileError;
         let tmp = path.with_extension("mcap.partial");
         if let Some(dir) = path.parent().filter(|p| !p.as_os_str().is_empty()) {
-            std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+            std::fs::create_dir_all(dir).map_err(FileError::at(dir))?;
         }
-        let file = std::fs::File::create(&tmp).map_err(|e| format!("{}: {e}", tmp.display()))?;
-        let writer = mcap::Writer::new(BufWriter::new(file))
-            .map_err(|e| format!("{}: {e}", tmp.display()))?;
+        let file = std::fs::File::create(&tmp).map_err(FileError::at(&tmp))?;
+        let writer =
+            mcap::Writer::new(BufWriter::new(file)).map_err(|source| RecordError::Mcap {
+                path: tmp.clone(),
+                source,
+            })?;
         Ok(Self {
             writer,
             schemas: BTreeMap::new(),
@@ -263,13 +283,14 @@ impl Recorder {
     }
 
     /// Finishes the file and moves it into place.
-    pub fn finish(mut self) -> Result<PathBuf, String> {
-        self.writer
-            .finish()
-            .map_err(|e| format!("{}: {e}", self.tmp.display()))?;
+    pub fn finish(mut self) -> Result<PathBuf, RecordError> {
+        self.writer.finish().map_err(|source| RecordError::Mcap {
+            path: self.tmp.clone(),
+            source,
+        })?;
         drop(self.writer);
         std::fs::rename(&self.tmp, &self.path)
-            .map_err(|e| format!("{}: {e}", self.path.display()))?;
+            .map_err(hetsim_core::files::FileError::at(&self.path))?;
         Ok(self.path)
     }
 }

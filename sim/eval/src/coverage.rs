@@ -1,6 +1,7 @@
 //! Grid-level coverage planning of a scenario's parent/child team (seed 002, Section V.A).
 
-use hetsim_coverage::{plan, CoverageParams, Direction, Map, Plan, Vertex};
+use crate::EvalError;
+use hetsim_coverage::{plan, CoverageParams, Map, Plan, Vertex};
 use hetsim_scene::Scenario;
 use serde::Serialize;
 
@@ -47,58 +48,19 @@ impl CoverageMetrics {
     }
 }
 
-/// Planning parameters from the scenario's `[coverage]` table and its robots.
-pub fn coverage_params(scenario: &Scenario) -> CoverageParams {
-    let spec = scenario.file.coverage.clone().unwrap_or_default();
-    let radius = |model: &str, default: f64| {
-        scenario
-            .robots
-            .iter()
-            .find(|r| r.spec.model == model)
-            .map_or(default, |r| {
-                r.model.body.length_m.max(r.model.body.width_m) / 2.0
-            })
-    };
-    let direction = match spec.direction.as_str() {
-        "north" => Direction::North,
-        "west" => Direction::West,
-        "south" => Direction::South,
-        _ => Direction::East,
-    };
-    CoverageParams {
-        r_los_m: spec.r_los_m,
-        direction,
-        child_fov_deg: spec.child_fov_deg,
-        view_margin_deg: spec.view_margin_deg,
-        parent_radius_m: radius("parent", 0.225),
-        child_radius_m: radius("ctbot", 0.06),
-        children: spec
-            .children
-            .unwrap_or_else(|| {
-                scenario
-                    .robots
-                    .iter()
-                    .filter(|r| r.spec.model == "ctbot")
-                    .count()
-            })
-            .max(1),
-        f_factor: spec.f_factor,
-    }
-}
-
 /// Plans the coverage mission of an indoor scenario on its ground-truth grid. The parent
 /// starts on the vertex under the scenario's `parent` robot (or the first robot); the
 /// children on their robots' vertices when the scenario places exactly N of them, else next
 /// to the parent.
-pub fn plan_scenario(scenario: &Scenario) -> Result<(Map, CoverageParams, Plan), String> {
+pub fn plan_scenario(scenario: &Scenario) -> Result<(Map, CoverageParams, Plan), EvalError> {
     let grid = &scenario
         .world
         .grid
         .as_ref()
-        .ok_or("coverage planning needs an indoor_grid world")?
+        .ok_or_else(|| EvalError::Plan("needs an indoor_grid world".into()))?
         .grid;
     let map = Map::from_grid(grid);
-    let params = coverage_params(scenario);
+    let params = hetsim_stacks::coverage_params(scenario);
     let vertex_of =
         |x: f64, y: f64| -> Option<Vertex> { grid.cell_of(x, y).map(|(c, r)| r * grid.cols + c) };
     let parent = scenario
@@ -106,9 +68,9 @@ pub fn plan_scenario(scenario: &Scenario) -> Result<(Map, CoverageParams, Plan),
         .iter()
         .find(|r| r.spec.model == "parent")
         .or(scenario.robots.first())
-        .ok_or("no robots")?;
+        .ok_or_else(|| EvalError::Plan("no robots".into()))?;
     let parent_start = vertex_of(parent.spec.start.x, parent.spec.start.y)
-        .ok_or("the parent starts outside the grid")?;
+        .ok_or_else(|| EvalError::Plan("the parent starts outside the grid".into()))?;
     let kids: Vec<Vertex> = scenario
         .robots
         .iter()
@@ -120,6 +82,7 @@ pub fn plan_scenario(scenario: &Scenario) -> Result<(Map, CoverageParams, Plan),
     } else {
         Vec::new()
     };
-    let plan = plan(&map, &params, parent_start, &child_starts).map_err(|e| e.to_string())?;
+    let plan = plan(&map, &params, parent_start, &child_starts)
+        .map_err(|e| EvalError::Plan(e.to_string()))?;
     Ok((map, params, plan))
 }

@@ -2,7 +2,8 @@
 //! cross-validation of the paper over several mapping runs, and a particle filter that
 //! localizes a child driving a new path.
 
-use crate::team::MeanStd;
+use crate::stats::MeanStd;
+use crate::EvalError;
 use hetsim_core::{SimRng, Streams};
 use hetsim_coverage::localize::{ParticleFilter, PfParams, Place};
 use hetsim_msgs::pose_from_xyz_rpy;
@@ -30,7 +31,7 @@ pub struct DbImage {
 
 /// The database a parent reported, with true grab positions from the run's ground truth.
 pub fn database_of(
-    report: &hetsim_msgs::TeamReport,
+    report: &hetsim_coverage::TeamReport,
     truth: &[(String, Vec<(u64, hetsim_msgs::Pose)>)],
 ) -> Vec<DbImage> {
     report
@@ -38,7 +39,7 @@ pub fn database_of(
         .iter()
         .filter_map(|d| {
             let track = &truth.iter().find(|(n, _)| *n == d.child)?.1;
-            let p = crate::team::truth_at(track, d.image.stamp_ns)
+            let p = crate::scene::truth_at(track, d.image.stamp_ns)
                 .translation
                 .vector;
             let gray = Gray::from_rgb(
@@ -57,20 +58,20 @@ pub fn database_of(
 }
 
 /// Reads `coverage/database.json` and its images from a run's results directory.
-pub fn load_database(run: &Path) -> Result<Vec<DbImage>, String> {
+pub fn load_database(run: &Path) -> Result<Vec<DbImage>, EvalError> {
     let dir = run.join("coverage");
     let path = dir.join("database.json");
-    let text = std::fs::read_to_string(&path).map_err(|e| {
-        format!(
-            "{}: {e} (not the results of a coverage mission?)",
-            path.display()
-        )
-    })?;
+    let content = |message: String| EvalError::Content {
+        path: path.clone(),
+        message,
+    };
+    let text = std::fs::read_to_string(&path)
+        .map_err(|e| content(format!("{e} (not the results of a coverage mission?)")))?;
     let json: serde_json::Value =
-        serde_json::from_str(&text).map_err(|e| format!("{}: {e}", path.display()))?;
+        serde_json::from_str(&text).map_err(|e| content(format!("line {}: {e}", e.line())))?;
     let images = json["images"]
         .as_array()
-        .ok_or_else(|| format!("{}: no \"images\" array", path.display()))?;
+        .ok_or_else(|| content("no \"images\" array".into()))?;
     images
         .iter()
         .enumerate()
@@ -79,19 +80,21 @@ pub fn load_database(run: &Path) -> Result<Vec<DbImage>, String> {
                 let v = &entry[name];
                 match (v[0].as_f64(), v[1].as_f64()) {
                     (Some(a), Some(b)) => Ok([a, b]),
-                    _ => Err(format!(
-                        "{}: images[{k}].{name} is {v}, expected [x, y]",
-                        path.display()
-                    )),
+                    _ => Err(content(format!(
+                        "images[{k}].{name} is {v}, expected [x, y]"
+                    ))),
                 }
             };
             let vertex = field("vertex")?;
-            let file = entry["image"].as_str().ok_or_else(|| {
-                format!("{}: images[{k}].image is not a file name", path.display())
-            })?;
+            let file = entry["image"]
+                .as_str()
+                .ok_or_else(|| content(format!("images[{k}].image is not a file name")))?;
             let png = dir.join(file);
             let img = image::open(&png)
-                .map_err(|e| format!("{}: {e}", png.display()))?
+                .map_err(|e| EvalError::Content {
+                    path: png.clone(),
+                    message: e.to_string(),
+                })?
                 .to_rgb8();
             let gray = Gray::from_rgb(img.width() as usize, img.height() as usize, img.as_raw());
             Ok(DbImage {
@@ -122,7 +125,7 @@ fn errors_of(feature: Feature, errors: &[f64], same: usize) -> FeatureErrors {
     sorted.sort_by(f64::total_cmp);
     FeatureErrors {
         feature: feature.name().into(),
-        error_m: MeanStd::of(errors),
+        error_m: MeanStd::population(errors),
         median_m: sorted.get(sorted.len() / 2).copied().unwrap_or(0.0),
         same_vertex: same as f64 / errors.len().max(1) as f64,
     }
@@ -164,17 +167,17 @@ pub fn cross_validate(runs: &[Vec<DbImage>]) -> Vec<FeatureErrors> {
 /// The camera of the scenario's first coverage child: body-from-mount, intrinsics, noise.
 fn child_camera(
     scenario: &Scenario,
-) -> Result<(hetsim_msgs::Pose, hetsim_render::Intrinsics, f64), String> {
+) -> Result<(hetsim_msgs::Pose, hetsim_render::Intrinsics, f64), EvalError> {
     scenario
         .robots
         .iter()
         .filter(|r| matches!(r.spec.mission, hetsim_scene::MissionSpec::CoverageChild))
-        .find_map(crate::team::camera_of)
+        .find_map(crate::scene::camera_of)
         .ok_or_else(|| {
-            format!(
+            EvalError::Scenario(format!(
                 "{}: no coverage_child robot with a camera",
                 scenario.path.display()
-            )
+            ))
         })
 }
 
@@ -203,23 +206,23 @@ pub fn particle_filter_path(
     steps: usize,
     seed: u64,
     render: &RenderOptions,
-) -> Result<Vec<PathRun>, String> {
+) -> Result<Vec<PathRun>, EvalError> {
     let grid = scenario
         .world
         .grid
         .as_ref()
-        .ok_or("localization needs an indoor_grid world")?
+        .ok_or_else(|| EvalError::Scenario("localization needs an indoor_grid world".into()))?
         .grid
         .clone();
     let (mount, k, noise) = child_camera(scenario)?;
-    let mapping = crate::team::direction_rad(scenario);
+    let mapping = crate::scene::direction_rad(scenario);
     // The path's own stream of the run's seed: the same seed, the same path and images.
     let mut rng = Streams::new(seed).stream("localize/path");
     // The path: a random walk over free vertices of the robots' component, never straight
     // back.
     let reachable: Vec<(usize, usize)> = database.iter().map(|d| d.vertex).collect();
     if reachable.is_empty() {
-        return Err("the database is empty".into());
+        return Err(EvalError::Scenario("the database is empty".into()));
     }
     let mut here = reachable[rng.random_range(0..reachable.len())];
     let mut path = vec![here];
@@ -248,7 +251,7 @@ pub fn particle_filter_path(
     let compass_sigma = 3.5f64.to_radians();
     let gauss = |rng: &mut SimRng| -> f64 { StandardNormal.sample(rng) };
     // True grab poses and the images.
-    let mut renderer = Renderer::new(&scenario.world, render).map_err(|e| e.to_string())?;
+    let mut renderer = Renderer::new(&scenario.world, render)?;
     let mut shots = Vec::new();
     let mut true_xy = Vec::new();
     for v in &path {
@@ -383,17 +386,16 @@ pub fn summarize(
     // Pooled over the runs' images (runs have nearly equal image counts): the mean of the
     // means, and the spread of all images around it.
     let pooled = |key: &'static str| {
-        let stats: Vec<(f64, f64)> = missions
+        let stats: Vec<MeanStd> = missions
             .iter()
-            .filter_map(|m| Some((m[key]["mean"].as_f64()?, m[key]["std"].as_f64()?)))
+            .filter_map(|m| {
+                Some(MeanStd {
+                    mean: m[key]["mean"].as_f64()?,
+                    std: m[key]["std"].as_f64()?,
+                })
+            })
             .collect();
-        let n = stats.len().max(1) as f64;
-        let mean = stats.iter().map(|s| s.0).sum::<f64>() / n;
-        let second = stats.iter().map(|s| s.1 * s.1 + s.0 * s.0).sum::<f64>() / n;
-        MeanStd {
-            mean,
-            std: (second - mean * mean).max(0.0).sqrt(),
-        }
+        MeanStd::pooled(&stats)
     };
     let total = |key: &'static str| missions.iter().filter_map(|m| m[key].as_u64()).sum::<u64>();
     let particle_filter = Feature::ALL
@@ -412,9 +414,9 @@ pub fn summarize(
             PathSummary {
                 feature: f.name().into(),
                 paths: runs.len(),
-                final_error_m: MeanStd::of(&finals),
+                final_error_m: MeanStd::population(&finals),
                 converged: conv.len(),
-                images_to_converge: MeanStd::of(&conv),
+                images_to_converge: MeanStd::population(&conv),
                 runs,
             }
         })
@@ -425,8 +427,8 @@ pub fn summarize(
             .iter()
             .filter(|m| m["finished"].as_bool() == Some(true))
             .count(),
-        images_per_run: MeanStd::of(&values(&|m| m["imaged"].as_f64())).mean,
-        mission_min: MeanStd::of(&values(&|m| m["mission_min"].as_f64())),
+        images_per_run: MeanStd::population(&values(&|m| m["imaged"].as_f64())).mean,
+        mission_min: MeanStd::population(&values(&|m| m["mission_min"].as_f64())),
         position_error_m: pooled("position_error_m"),
         tracked_position_error_m: pooled("tracked_position_error_m"),
         heading_error_deg: pooled("heading_error_deg"),

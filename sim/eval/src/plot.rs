@@ -9,6 +9,17 @@ const GRID: Rgb<u8> = Rgb([225, 225, 225]);
 const MAPPING: Rgb<u8> = Rgb([52, 101, 164]);
 const COORDINATION: Rgb<u8> = Rgb([252, 175, 62]);
 
+/// The PNG bytes of an image.
+pub fn png(img: &RgbImage) -> Vec<u8> {
+    let mut bytes = Vec::new();
+    img.write_to(
+        &mut std::io::Cursor::new(&mut bytes),
+        image::ImageFormat::Png,
+    )
+    .expect("PNG encodes in memory");
+    bytes
+}
+
 /// Glyphs of the font, 3 columns x 5 rows, one row per 3 bits (MSB left).
 fn glyph(c: char) -> [u8; 5] {
     match c {

@@ -7,6 +7,8 @@
 //! deliberate `--update`.
 
 use crate::coverage::{plan_scenario, CoverageMetrics};
+use crate::EvalError;
+use hetsim_core::files::write_atomic;
 use hetsim_scene::{load_scenario, LoadOptions};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
@@ -100,21 +102,25 @@ fn baseline_path(root: &Path, scenario: &str) -> PathBuf {
 }
 
 /// Runs every scenario, compares with (or, with `update`, rewrites) its baseline.
-pub fn regress(root: &Path, scenarios: &[String], update: bool) -> Result<Vec<Comparison>, String> {
+pub fn regress(
+    root: &Path,
+    scenarios: &[String],
+    update: bool,
+) -> Result<Vec<Comparison>, EvalError> {
     let mut out = Vec::new();
     for scenario in scenarios {
         let path = baseline_path(root, scenario);
         let existing: Option<Baseline> = match std::fs::read_to_string(&path) {
-            Ok(text) => Some(
-                serde_json::from_str(&text)
-                    .map_err(|e| format!("{}: line {}: {e}", path.display(), e.line()))?,
-            ),
+            Ok(text) => Some(serde_json::from_str(&text).map_err(|e| EvalError::Content {
+                path: path.clone(),
+                message: format!("line {}: {e}", e.line()),
+            })?),
             Err(_) if update => None,
             Err(e) => {
-                return Err(format!(
-                    "{}: {e} (run `hetsim regress --update` to create it)",
-                    path.display()
-                ))
+                return Err(EvalError::Content {
+                    path,
+                    message: format!("{e} (run `hetsim regress --update` to create it)"),
+                })
             }
         };
         let seed = existing.as_ref().map(|b| b.seed);
@@ -124,8 +130,7 @@ pub fn regress(root: &Path, scenarios: &[String], update: bool) -> Result<Vec<Co
                 seed,
                 duration_secs: None,
             },
-        )
-        .map_err(|e| e.to_string())?;
+        )?;
         let (_, _, plan) = plan_scenario(&loaded)?;
         let now = metrics_map(&CoverageMetrics::of(&plan));
         if update {
@@ -135,11 +140,8 @@ pub fn regress(root: &Path, scenarios: &[String], update: bool) -> Result<Vec<Co
                 metrics: now.clone(),
                 tolerance: existing.map_or_else(default_tolerances, |b| b.tolerance),
             };
-            let text = serde_json::to_string_pretty(&baseline).map_err(|e| e.to_string())? + "\n";
-            let tmp = path.with_extension("json.tmp");
-            std::fs::write(&tmp, text)
-                .and_then(|()| std::fs::rename(&tmp, &path))
-                .map_err(|e| format!("{}: {e}", path.display()))?;
+            let text = serde_json::to_string_pretty(&baseline).expect("baselines serialize") + "\n";
+            write_atomic(&path, text.as_bytes())?;
             for (metric, value) in &now {
                 out.push(Comparison {
                     scenario: scenario.clone(),
@@ -158,9 +160,10 @@ pub fn regress(root: &Path, scenarios: &[String], update: bool) -> Result<Vec<Co
                 .get(metric)
                 .cloned()
                 .unwrap_or(Tolerance { abs: 0.0, rel: 0.0 });
-            let now_value = *now
-                .get(metric)
-                .ok_or(format!("{}: unknown metric {metric}", path.display()))?;
+            let now_value = *now.get(metric).ok_or_else(|| EvalError::Content {
+                path: path.clone(),
+                message: format!("unknown metric {metric}"),
+            })?;
             out.push(Comparison {
                 scenario: scenario.clone(),
                 metric: metric.clone(),

@@ -3,6 +3,8 @@
 
 use crate::plot::{stacked_boxes, StackedBox};
 use crate::sweep::{load_sweep, run_sweep, SummaryCell, SweepSummary};
+use crate::EvalError;
+use hetsim_core::files::write_atomic;
 use std::path::Path;
 
 /// The paper's Table I: (obstruction, Q mean, Q std, following mean, following std).
@@ -24,14 +26,8 @@ fn pooled(cells: &[&SummaryCell], metric: &str) -> (f64, f64) {
         .iter()
         .flat_map(|c| c.stat(metric).samples.iter().copied())
         .collect();
-    let n = all.len() as f64;
-    let mean = all.iter().sum::<f64>() / n;
-    let std = if all.len() > 1 {
-        (all.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1.0)).sqrt()
-    } else {
-        0.0
-    };
-    (mean, std)
+    let s = crate::stats::MeanStd::sample(&all);
+    (s.mean, s.std)
 }
 
 /// Cells whose value on `axis` (by index) equals `value`.
@@ -65,7 +61,7 @@ pub fn coverage_report(
     root: &Path,
     jobs: usize,
     progress: &(dyn Fn(usize, usize) + Sync),
-) -> Result<std::path::PathBuf, String> {
+) -> Result<std::path::PathBuf, EvalError> {
     let t1 = load_sweep(&root.join("scenarios/sweeps/table1.toml"))?;
     let t2 = load_sweep(&root.join("scenarios/sweeps/table2.toml"))?;
     let s1 = run_sweep(
@@ -83,11 +79,9 @@ pub fn coverage_report(
         progress,
     )?;
     let axis = |sweep: &crate::sweep::Sweep, name: &str| {
-        sweep
-            .axes()
-            .iter()
-            .position(|a| a == name)
-            .ok_or(format!("sweep {} has no axis {name}", sweep.file.name))
+        sweep.axes().iter().position(|a| a == name).ok_or_else(|| {
+            EvalError::Scenario(format!("sweep {} has no axis {name}", sweep.file.name))
+        })
     };
     let (ratio_ax, kids1) = (
         axis(&t1, "world.indoor.obstruction_ratio")?,
@@ -149,11 +143,7 @@ pub fn coverage_report(
         .collect();
     for (name, panels) in [("coverage-fig3.png", fig3), ("coverage-fig4.png", fig4)] {
         let path = root.join("results").join(name);
-        let tmp = path.with_extension("png.tmp");
-        stacked_boxes(&panels)
-            .save_with_format(&tmp, image::ImageFormat::Png)
-            .map_err(|e| format!("{}: {e}", tmp.display()))?;
-        std::fs::rename(&tmp, &path).map_err(|e| format!("{}: {e}", path.display()))?;
+        write_atomic(&path, &crate::plot::png(&stacked_boxes(&panels)))?;
     }
     md.push_str("## Figs. 3 and 4: timesteps by number of children\n\nEach box is the distribution of total timesteps over the 10 maps of a cell (whiskers min-max, box quartiles, black line median); the fill is blue up to the median mapping timesteps and orange above (coordination). x: number of children 1-8.\n\n![Fig. 3: obstruction 0, 20, 40 %](coverage-fig3.png)\n\n![Fig. 4: r_los = 1, 2, 4, 8 m at 20 % (panel titles in metres)](coverage-fig4.png)\n\n");
     md.push_str("Mean timesteps per cell (mapping + coordination):\n\n| sweep | cell | mapping | coordination | total | coverage |\n|---|---|---|---|---|---|\n");
@@ -181,10 +171,7 @@ pub fn coverage_report(
     }
     md.push_str(&discussion(&ours1, &ours2));
     let path = root.join("results/coverage-tables.md");
-    let tmp = path.with_extension("md.tmp");
-    std::fs::write(&tmp, md)
-        .and_then(|()| std::fs::rename(&tmp, &path))
-        .map_err(|e| format!("{}: {e}", path.display()))?;
+    write_atomic(&path, md.as_bytes())?;
     Ok(path)
 }
 

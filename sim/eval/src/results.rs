@@ -1,11 +1,14 @@
-//! Writing a run's results directory atomically.
+//! A run's results folder: the files, in the order the digest covers them, written atomically.
 //!
 //! Everything is written into a hidden temporary directory beside the destination, which is
 //! renamed into place only when every file is complete: an interrupted run never leaves a
 //! directory that looks like finished results.
 
-use crate::RunResult;
-use hetsim_msgs::Pose;
+use crate::metrics::{estimates, Estimate, Metrics};
+use crate::EvalError;
+use hetsim_core::files::{write_dir_atomic, FileError};
+use hetsim_engine::{tum_line, RunOutput};
+use hetsim_msgs::{ArtifactData, Pose};
 use hetsim_scene::Scenario;
 use serde_json::json;
 use std::path::{Path, PathBuf};
@@ -19,60 +22,100 @@ pub struct RunFiles {
     pub digest: String,
 }
 
-/// Why results could not be written.
-#[derive(Debug, thiserror::Error)]
-pub enum WriteError {
-    /// A file system operation failed.
-    #[error("{}: {source}", path.display())]
-    Io {
-        /// The path involved.
-        path: PathBuf,
-        /// What failed.
-        source: std::io::Error,
-    },
-    /// The destination exists and is not an earlier hetsim run.
-    #[error("{}: exists and is not a hetsim results directory (no manifest.json); choose another --out or remove it", .0.display())]
-    Occupied(PathBuf),
-}
+/// The map every robot published, in robot order: points, then segments.
+type MapParts = (
+    Vec<(String, usize, [f64; 3])>,
+    Vec<(String, usize, [[f64; 3]; 2])>,
+);
 
-fn io(path: &Path) -> impl FnOnce(std::io::Error) -> WriteError + '_ {
-    move |source| WriteError::Io {
-        path: path.to_path_buf(),
-        source,
+fn maps(output: &RunOutput) -> MapParts {
+    let (mut points, mut segments) = (Vec::new(), Vec::new());
+    for (robot, a) in output.artifacts_named("map") {
+        if let ArtifactData::Map {
+            points: p,
+            segments: s,
+        } = &a.data
+        {
+            points.extend(p.iter().map(|(k, x)| (robot.to_string(), *k, *x)));
+            segments.extend(s.iter().map(|(k, x)| (robot.to_string(), *k, *x)));
+        }
     }
+    (points, segments)
 }
 
-/// One line of a TUM trajectory: `t tx ty tz qx qy qz qw` (seconds, metres, unit quaternion
-/// with w last).
-pub fn tum_line(stamp_ns: u64, pose: &Pose) -> String {
-    let t = pose.translation.vector;
-    let q = pose.rotation.quaternion();
-    format!(
-        "{}.{:09} {:.6} {:.6} {:.6} {:.9} {:.9} {:.9} {:.9}\n",
-        stamp_ns / 1_000_000_000,
-        stamp_ns % 1_000_000_000,
-        t.x,
-        t.y,
-        t.z,
-        q.i,
-        q.j,
-        q.k,
-        q.w
-    )
-}
-
-/// Writes `result` to `dest` (or to `results/runs/<name>-seed<seed>-<digest8>` when `dest` is
-/// `None`), adding every output file to the digest first, and returns the directory and
-/// final digest. `timing` is written to `timing.json` outside the digest. `frames`, a folder
-/// of dumped camera frames staged during the run, is moved in as `frames/` (the images are
-/// in the digest as messages already).
+/// Writes a run's results to `dest` (or to `results/runs/<name>-seed<seed>-<digest8>` when
+/// `dest` is `None`), adding every output file to the digest first, and returns the directory
+/// and final digest. `timing` is written to `timing.json` outside the digest. `frames`, a
+/// folder of dumped camera frames staged during the run, is moved in as `frames/` (the images
+/// are in the digest as messages already).
 pub fn write_run(
     scenario: &Scenario,
-    mut result: RunResult,
+    mut result: RunOutput,
+    metrics: &Metrics,
     dest: Option<&Path>,
     timing: serde_json::Value,
     frames: Option<&Path>,
-) -> Result<RunFiles, WriteError> {
+) -> Result<RunFiles, EvalError> {
+    let files = files(scenario, &result, metrics);
+    let mut files = files;
+    for (name, bytes) in &files {
+        result.digest.record(&format!("file/{name}"), bytes);
+    }
+    let digest = result.digest.hex();
+    files.push((
+        "manifest.json".to_string(),
+        serde_json::to_vec_pretty(&manifest(scenario, &result, &digest))
+            .expect("manifest serializes"),
+    ));
+    files.push((
+        "timing.json".to_string(),
+        serde_json::to_vec_pretty(&timing).expect("timing serializes"),
+    ));
+    let dir = match dest {
+        Some(d) => d.to_path_buf(),
+        None => PathBuf::from("results/runs").join(format!(
+            "{}-seed{}-{}",
+            scenario.file.name,
+            scenario.seed,
+            &digest[..8]
+        )),
+    };
+    if dir.exists() && !dir.join("manifest.json").is_file() {
+        return Err(EvalError::Occupied(dir));
+    }
+    write_dir_atomic(&dir, &files, |tmp| {
+        if let Some(staged) = frames.filter(|f| f.exists()) {
+            std::fs::rename(staged, tmp.join("frames")).map_err(FileError::at(staged))?;
+        }
+        Ok(())
+    })?;
+    Ok(RunFiles { dir, digest })
+}
+
+/// `manifest.json`: what ran, on what, and the digest.
+fn manifest(scenario: &Scenario, result: &RunOutput, digest: &str) -> serde_json::Value {
+    json!({
+        "hetsim_version": env!("CARGO_PKG_VERSION"),
+        "scenario": scenario.path.display().to_string(),
+        "files_sha256": scenario.file_hashes,
+        "seed": scenario.seed,
+        "dt_secs": scenario.clock.dt_secs(),
+        "duration_secs": scenario.duration_secs,
+        "resolved": {
+            "scenario": scenario.file,
+            "robots": scenario.robots.iter().map(|r| json!({"name": r.spec.name, "model": r.model})).collect::<Vec<_>>(),
+        },
+        "adapter": result.adapter.as_ref().map_or(serde_json::Value::Null, |a| json!({"name": a.name, "backend": a.backend, "driver": a.driver})),
+        "stacks": result.robots.iter().map(|r| json!({"robot": r.name, "digest": r.stack_digest})).collect::<Vec<_>>(),
+        "records": result.digest.records(),
+        "digest": digest,
+    })
+}
+
+/// The run's files in the order the digest covers them (everything but the manifest and
+/// `timing.json`).
+fn files(scenario: &Scenario, result: &RunOutput, metrics: &Metrics) -> Vec<(String, Vec<u8>)> {
+    let estimates = estimates(result);
     let mut files: Vec<(String, Vec<u8>)> = Vec::new();
     for (name, poses) in &result.truth {
         let mut text = String::new();
@@ -81,7 +124,7 @@ pub fn write_run(
         }
         files.push((format!("truth/{name}.tum"), text.into_bytes()));
     }
-    for e in &result.estimates {
+    for e in &estimates {
         let text: String = e.poses.iter().map(|(t, p)| tum_line(*t, p)).collect();
         files.push((format!("{}/{}.tum", e.kind, e.robot), text.into_bytes()));
         // A picture: estimate against truth over the estimate's time span.
@@ -101,20 +144,15 @@ pub fn write_run(
             .unwrap_or_default();
         let estimate: Vec<(u64, [f64; 3])> =
             e.poses.iter().map(|(t, p)| (*t - first, xyz(p))).collect();
-        let mut png = Vec::new();
-        crate::plot::trajectory_plot(&truth, &estimate)
-            .write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
-            .expect("PNG encodes in memory");
+        let png = crate::plot::png(&crate::plot::trajectory_plot(&truth, &estimate));
         files.push((format!("plots/{}-{}.png", e.kind, e.robot), png));
     }
-    if !result.map_points.is_empty() || !result.map_segments.is_empty() {
-        files.push((
-            "map.ply".to_string(),
-            ply(&result.map_points, &result.map_segments),
-        ));
+    let (map_points, map_segments) = maps(result);
+    if !map_points.is_empty() || !map_segments.is_empty() {
+        files.push(("map.ply".to_string(), ply(&map_points, &map_segments)));
     }
     // The SLAM's global level per robot: sub-map origins with covariance, and the events.
-    for (robot, report) in &result.slam {
+    for (robot, report) in &crate::slam::reports(result) {
         let origins: Vec<serde_json::Value> = report
             .origins
             .iter()
@@ -128,8 +166,7 @@ pub fn write_run(
                 })
             })
             .collect();
-        let events = result
-            .metrics
+        let events = metrics
             .slam
             .as_ref()
             .and_then(|m| m.robots.get(robot))
@@ -149,14 +186,9 @@ pub fn write_run(
     // Fig. 7 of seed 000 per robot: VO, open-loop and event-corrected SLAM against truth.
     for (robot, truth) in &result.truth {
         let kinds = ["vo", "slam-open", "slam"];
-        let series: Vec<&crate::Estimate> = kinds
+        let series: Vec<&Estimate> = kinds
             .iter()
-            .filter_map(|k| {
-                result
-                    .estimates
-                    .iter()
-                    .find(|e| e.kind == *k && e.robot == *robot)
-            })
+            .filter_map(|k| estimates.iter().find(|e| e.kind == *k && e.robot == *robot))
             .collect();
         if series.len() < kinds.len() {
             continue;
@@ -173,96 +205,15 @@ pub fn write_run(
             .iter()
             .map(|e| e.poses.iter().map(xyz).collect())
             .collect();
-        let mut png = Vec::new();
-        crate::plot::trajectories_plot(&truth, &lines)
-            .write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
-            .expect("PNG encodes in memory");
+        let png = crate::plot::png(&crate::plot::trajectories_plot(&truth, &lines));
         files.push((format!("plots/fig7-{robot}.png"), png));
     }
-    if let Some(team) = &result.team {
-        files.extend(crate::team::files(scenario, team, &result.truth));
+    if let Some(team) = crate::team::TeamOutcome::of(result) {
+        files.extend(crate::team::files(scenario, &team, &result.truth));
     }
-    let metrics = serde_json::to_vec_pretty(&result.metrics).expect("metrics serialize");
+    let metrics = serde_json::to_vec_pretty(metrics).expect("metrics serialize");
     files.push(("metrics.json".to_string(), metrics));
-    for (name, bytes) in &files {
-        result.digest.record(&format!("file/{name}"), bytes);
-    }
-    let digest = result.digest.hex();
-    let manifest = json!({
-        "hetsim_version": env!("CARGO_PKG_VERSION"),
-        "scenario": scenario.path.display().to_string(),
-        "files_sha256": scenario.file_hashes,
-        "seed": scenario.seed,
-        "dt_secs": scenario.clock.dt_secs(),
-        "duration_secs": scenario.duration_secs,
-        "resolved": {
-            "scenario": scenario.file,
-            "robots": scenario.robots.iter().map(|r| json!({"name": r.spec.name, "model": r.model})).collect::<Vec<_>>(),
-        },
-        "adapter": result.adapter.as_ref().map_or(serde_json::Value::Null, |a| json!({"name": a.name, "backend": a.backend, "driver": a.driver})),
-        "records": result.digest.records(),
-        "digest": digest,
-    });
-    files.push((
-        "manifest.json".to_string(),
-        serde_json::to_vec_pretty(&manifest).expect("manifest serializes"),
-    ));
-    files.push((
-        "timing.json".to_string(),
-        serde_json::to_vec_pretty(&timing).expect("timing serializes"),
-    ));
-
-    let dir = match dest {
-        Some(d) => d.to_path_buf(),
-        None => PathBuf::from("results/runs").join(format!(
-            "{}-seed{}-{}",
-            scenario.file.name,
-            scenario.seed,
-            &digest[..8]
-        )),
-    };
-    if dir.exists() && !dir.join("manifest.json").is_file() {
-        return Err(WriteError::Occupied(dir));
-    }
-    let parent = dir
-        .parent()
-        .filter(|p| !p.as_os_str().is_empty())
-        .unwrap_or(Path::new("."));
-    std::fs::create_dir_all(parent).map_err(io(parent))?;
-    let leaf = dir
-        .file_name()
-        .map(|n| n.to_string_lossy().to_string())
-        .unwrap_or_else(|| "run".into());
-    let tmp = parent.join(format!(".{leaf}.partial-{}", std::process::id()));
-    if tmp.exists() {
-        std::fs::remove_dir_all(&tmp).map_err(io(&tmp))?;
-    }
-    let written = (|| {
-        for (name, bytes) in &files {
-            let path = tmp.join(name);
-            if let Some(p) = path.parent() {
-                std::fs::create_dir_all(p).map_err(io(p))?;
-            }
-            std::fs::write(&path, bytes).map_err(io(&path))?;
-        }
-        if let Some(staged) = frames.filter(|f| f.exists()) {
-            std::fs::rename(staged, tmp.join("frames")).map_err(io(staged))?;
-        }
-        if dir.exists() {
-            // An earlier run with the same destination: move it aside, then replace it.
-            let old = parent.join(format!(".{leaf}.old-{}", std::process::id()));
-            std::fs::rename(&dir, &old).map_err(io(&dir))?;
-            std::fs::rename(&tmp, &dir).map_err(io(&dir))?;
-            std::fs::remove_dir_all(&old).map_err(io(&old))?;
-        } else {
-            std::fs::rename(&tmp, &dir).map_err(io(&dir))?;
-        }
-        Ok(())
-    })();
-    if written.is_err() {
-        let _ = std::fs::remove_dir_all(&tmp);
-    }
-    written.map(|()| RunFiles { dir, digest })
+    files
 }
 
 /// An ASCII PLY of mapped points, coloured by robot (in order of first appearance), with

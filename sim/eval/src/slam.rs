@@ -1,9 +1,11 @@
 //! The SLAM stacks' reports against ground truth: the NEES of the robot pose, what each event
 //! did to the robot's pose error, and the team's joint accuracy.
 
+use crate::metrics::Estimate;
 use crate::trajectory::{evaluate_joint, Accuracy, Paired};
-use crate::Estimate;
-use hetsim_msgs::{Pose, SlamReport};
+use hetsim_engine::RunOutput;
+use hetsim_msgs::Pose;
+use hetsim_slam::report::{SlamReport, REPORT_ARTIFACT};
 use nalgebra::{Matrix6, Vector6};
 use serde::Serialize;
 use std::collections::BTreeMap;
@@ -64,6 +66,14 @@ fn error(estimate: &Pose, truth: &Pose) -> Vector6<f64> {
         r.y,
         r.z,
     )
+}
+
+/// The SLAM reports the run's stacks published, by robot, in robot order.
+pub fn reports(output: &RunOutput) -> Vec<(String, SlamReport)> {
+    output
+        .artifacts_named(REPORT_ARTIFACT)
+        .filter_map(|(robot, a)| Some((robot.to_string(), a.decode()?)))
+        .collect()
 }
 
 /// Judges the reports (robot name, report) against the robots' truth.
@@ -172,7 +182,7 @@ mod tests {
         cov[(1, 1)] = 0.04;
         let report = SlamReport {
             covariances: vec![cov.as_slice().to_vec(); 10],
-            events: vec![hetsim_msgs::SlamEvent {
+            events: vec![hetsim_slam::report::SlamEvent {
                 kind: "image_match".into(),
                 stamp_ns: 500,
                 other: "b".into(),

@@ -10,11 +10,79 @@
 //! number of jobs, on scheduling, or on sharding (`merge` joins shards into the same files).
 
 use crate::coverage::{plan_scenario, CoverageMetrics};
+use hetsim_core::files::{write_atomic, FileError};
 use hetsim_scene::{load_scenario_text, LoadOptions};
 use serde::Deserialize;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicUsize, Ordering};
+
+mod summary;
+pub use summary::{summarize, Stat, SummaryCell, SweepSummary};
+
+/// Why a sweep could not be loaded, run or summarized.
+#[derive(Debug, thiserror::Error)]
+pub enum SweepError {
+    /// A file could not be read or written.
+    #[error(transparent)]
+    File(#[from] FileError),
+    /// The sweep file is not valid TOML of the sweep schema.
+    #[error("{}:{}: {message}", path.display(), line.map_or("?".to_string(), |l| l.to_string()))]
+    Parse {
+        /// The sweep file.
+        path: PathBuf,
+        /// 1-based line, where known.
+        line: Option<usize>,
+        /// What is wrong.
+        message: String,
+    },
+    /// A field has a value that is not allowed.
+    #[error("{}: field `{field}` = {value}: {allowed}", path.display())]
+    Field {
+        /// The sweep file.
+        path: PathBuf,
+        /// The field.
+        field: String,
+        /// Its value.
+        value: String,
+        /// What is allowed.
+        allowed: String,
+    },
+    /// One run's scenario is refused or its plan failed.
+    #[error("{}: run {index} ({values}): {message}", path.display())]
+    Run {
+        /// The sweep file.
+        path: PathBuf,
+        /// The run.
+        index: usize,
+        /// Its axis values.
+        values: String,
+        /// What went wrong.
+        message: String,
+    },
+    /// A row file is not a row of this sweep.
+    #[error("{}: row {row}: {message}", path.display())]
+    Row {
+        /// The row file.
+        path: PathBuf,
+        /// 1-based record number in the file.
+        row: usize,
+        /// What is wrong.
+        message: String,
+    },
+    /// The worker threads could not be started.
+    #[error("starting {jobs} worker threads: {message}")]
+    Threads {
+        /// Threads asked for.
+        jobs: usize,
+        /// What failed.
+        message: String,
+    },
+}
+
+fn read(path: &Path) -> Result<Vec<u8>, SweepError> {
+    Ok(std::fs::read(path).map_err(FileError::at(path))?)
+}
 
 /// A sweep file.
 #[derive(Clone, Debug, PartialEq, Deserialize)]
@@ -98,46 +166,44 @@ fn value_text(v: &toml::Value) -> String {
 }
 
 /// Reads a sweep file and expands its runs.
-pub fn load_sweep(path: &Path) -> Result<Sweep, String> {
-    let text = std::fs::read_to_string(path)
-        .map_err(|e| format!("{}: cannot read: {e}", path.display()))?;
-    let file: SweepFile = toml::from_str(&text).map_err(|e| {
-        let line = e.span().map(|s| text[..s.start].matches('\n').count() + 1);
-        format!(
-            "{}:{}: {}",
-            path.display(),
-            line.map_or("?".into(), |l| l.to_string()),
-            e.message()
-        )
+pub fn load_sweep(path: &Path) -> Result<Sweep, SweepError> {
+    let text = String::from_utf8_lossy(&read(path)?).into_owned();
+    let file: SweepFile = toml::from_str(&text).map_err(|e| SweepError::Parse {
+        path: path.to_path_buf(),
+        line: e.span().map(|s| text[..s.start].matches('\n').count() + 1),
+        message: e.message().to_string(),
     })?;
+    let field = |field: &str, value: String, allowed: &str| SweepError::Field {
+        path: path.to_path_buf(),
+        field: field.to_string(),
+        value,
+        allowed: allowed.to_string(),
+    };
     if file.schema_version != 1 {
-        return Err(format!(
-            "{}: field `schema_version` = {}: schema_version = 1",
-            path.display(),
-            file.schema_version
+        return Err(field(
+            "schema_version",
+            file.schema_version.to_string(),
+            "schema_version = 1",
         ));
     }
     if file.seeds == 0 {
-        return Err(format!(
-            "{}: field `seeds` = 0: at least 1 seed",
-            path.display()
-        ));
+        return Err(field("seeds", "0".into(), "at least 1 seed"));
     }
     for (k, v) in &file.axes {
         if v.is_empty() {
-            return Err(format!(
-                "{}: field `axes.\"{k}\"` = []: at least one value",
-                path.display()
+            return Err(field(
+                &format!("axes.\"{k}\""),
+                "[]".into(),
+                "at least one value",
             ));
         }
     }
     let base = path.parent().unwrap_or(Path::new(".")).join(&file.base);
     let base_text = std::fs::read_to_string(&base).map_err(|e| {
-        format!(
-            "{}: field `base` = \"{}\": cannot read {}: {e}",
-            path.display(),
-            file.base,
-            base.display()
+        field(
+            "base",
+            format!("\"{}\"", file.base),
+            &format!("a readable scenario file ({}: {e})", base.display()),
         )
     })?;
     let axes: Vec<&Vec<toml::Value>> = file.axes.values().collect();
@@ -175,28 +241,7 @@ pub fn load_sweep(path: &Path) -> Result<Sweep, String> {
         .iter()
         .filter(|r| r.seed == sweep.file.first_seed)
     {
-        sweep
-            .scenario_text(run)
-            .and_then(|t| {
-                load_scenario_text(
-                    &sweep.base,
-                    t,
-                    &LoadOptions {
-                        seed: Some(run.seed),
-                        duration_secs: None,
-                    },
-                )
-                .map(|_| ())
-                .map_err(|e| e.to_string())
-            })
-            .map_err(|e| {
-                format!(
-                    "{}: run {} ({}): {e}",
-                    path.display(),
-                    run.index,
-                    sweep.describe(run)
-                )
-            })?;
+        sweep.scenario(run)?;
     }
     Ok(sweep)
 }
@@ -215,6 +260,32 @@ impl Sweep {
             .map(|(k, v)| format!("{k}={}", value_text(v)))
             .collect::<Vec<_>>()
             .join(", ")
+    }
+
+    /// A run's failure, with the sweep file and the run's values.
+    fn run_error(&self, run: &SweepRun, message: String) -> SweepError {
+        SweepError::Run {
+            path: self.path.clone(),
+            index: run.index,
+            values: self.describe(run),
+            message,
+        }
+    }
+
+    /// The run's scenario, loaded and validated.
+    pub fn scenario(&self, run: &SweepRun) -> Result<hetsim_scene::Scenario, SweepError> {
+        let text = self
+            .scenario_text(run)
+            .map_err(|e| self.run_error(run, e))?;
+        load_scenario_text(
+            &self.base,
+            text,
+            &LoadOptions {
+                seed: Some(run.seed),
+                duration_secs: None,
+            },
+        )
+        .map_err(|e| self.run_error(run, e.to_string()))
     }
 
     /// The base scenario with a run's axis values written in.
@@ -239,42 +310,78 @@ impl Sweep {
     }
 
     /// Runs one run: the coverage plan of the run's scenario.
-    pub fn run_one(&self, run: &SweepRun) -> Result<CoverageMetrics, String> {
-        let text = self.scenario_text(run)?;
-        let scenario = load_scenario_text(
-            &self.base,
-            text,
-            &LoadOptions {
-                seed: Some(run.seed),
-                duration_secs: None,
-            },
-        )
-        .map_err(|e| e.to_string())?;
-        let (_, _, plan) = plan_scenario(&scenario)?;
+    pub fn run_one(&self, run: &SweepRun) -> Result<CoverageMetrics, SweepError> {
+        let scenario = self.scenario(run)?;
+        let (_, _, plan) =
+            plan_scenario(&scenario).map_err(|e| self.run_error(run, e.to_string()))?;
         Ok(CoverageMetrics::of(&plan))
     }
 
-    fn row(&self, run: &SweepRun, m: &CoverageMetrics) -> String {
+    /// A run's row: index, axis values, seed, metrics.
+    fn row(&self, run: &SweepRun, m: &CoverageMetrics) -> Vec<String> {
         let mut fields = vec![run.index.to_string()];
         fields.extend(run.values.iter().map(value_text));
         fields.push(run.seed.to_string());
         fields.extend(metric_values(m).iter().map(|v| format!("{v}")));
-        fields.join(",") + "\n"
+        fields
     }
 
-    fn header(&self) -> String {
+    /// The header of `runs.csv`.
+    fn header(&self) -> Vec<String> {
         let mut fields = vec!["run".to_string()];
         fields.extend(self.axes());
         fields.push("seed".to_string());
         fields.extend(METRICS.iter().map(|s| s.to_string()));
-        fields.join(",") + "\n"
+        fields
     }
 }
 
-fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), String> {
-    let tmp = path.with_extension(format!("tmp-{}", std::process::id()));
-    std::fs::write(&tmp, bytes).map_err(|e| format!("{}: {e}", tmp.display()))?;
-    std::fs::rename(&tmp, path).map_err(|e| format!("{}: {e}", path.display()))
+/// CSV text of some records.
+fn csv_text<I, R>(records: I) -> Vec<u8>
+where
+    I: IntoIterator<Item = R>,
+    R: IntoIterator,
+    R::Item: AsRef<[u8]>,
+{
+    let mut w = csv::Writer::from_writer(Vec::new());
+    for r in records {
+        w.write_record(r).expect("CSV writes to memory");
+    }
+    w.into_inner().expect("CSV flushes to memory")
+}
+
+/// The one record of a row file, checked against the sweep's header.
+fn read_row(path: &Path, header: &[String]) -> Result<Vec<String>, SweepError> {
+    let bytes = read(path)?;
+    let row_error = |row: usize, message: String| SweepError::Row {
+        path: path.to_path_buf(),
+        row,
+        message,
+    };
+    let mut reader = csv::ReaderBuilder::new()
+        .has_headers(false)
+        .flexible(true)
+        .from_reader(bytes.as_slice());
+    let mut records = reader.records();
+    let record = records
+        .next()
+        .ok_or_else(|| row_error(1, "empty row file".into()))?
+        .map_err(|e| row_error(1, e.to_string()))?;
+    if records.next().is_some() {
+        return Err(row_error(2, "a row file holds one record".into()));
+    }
+    if record.len() != header.len() {
+        return Err(row_error(
+            1,
+            format!(
+                "{} fields where the sweep has {} columns ({})",
+                record.len(),
+                header.len(),
+                header.join(",")
+            ),
+        ));
+    }
+    Ok(record.iter().map(str::to_string).collect())
 }
 
 /// Which runs a shard `k` of `n` (1-based) owns.
@@ -291,15 +398,9 @@ pub fn run_sweep(
     jobs: usize,
     shard: (usize, usize),
     progress: &(dyn Fn(usize, usize) + Sync),
-) -> Result<SweepSummary, String> {
+) -> Result<SweepSummary, SweepError> {
     let rows = out.join("rows");
-    std::fs::create_dir_all(&rows).map_err(|e| format!("{}: {e}", rows.display()))?;
-    write_atomic(
-        &out.join("sweep.toml"),
-        std::fs::read(&sweep.path)
-            .map_err(|e| e.to_string())?
-            .as_slice(),
-    )?;
+    write_atomic(&out.join("sweep.toml"), &read(&sweep.path)?)?;
     let mine: Vec<&SweepRun> = sweep
         .runs
         .iter()
@@ -315,35 +416,35 @@ pub fn run_sweep(
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(jobs.max(1))
         .build()
-        .map_err(|e| e.to_string())?;
-    let results: Vec<Result<(), String>> = pool.install(|| {
+        .map_err(|e| SweepError::Threads {
+            jobs,
+            message: e.to_string(),
+        })?;
+    let results: Vec<Result<(), SweepError>> = pool.install(|| {
         use rayon::prelude::*;
         pending
             .par_iter()
             .map(|run| {
-                let m = sweep
-                    .run_one(run)
-                    .map_err(|e| format!("run {} ({}): {e}", run.index, sweep.describe(run)))?;
+                let m = sweep.run_one(run)?;
                 write_atomic(
                     &rows.join(format!("{:06}.csv", run.index)),
-                    sweep.row(run, &m).as_bytes(),
+                    &csv_text([sweep.row(run, &m)]),
                 )?;
                 progress(done.fetch_add(1, Ordering::Relaxed) + 1, mine.len());
                 Ok(())
             })
             .collect()
     });
-    results.into_iter().collect::<Result<Vec<()>, String>>()?;
+    results.into_iter().collect::<Result<Vec<()>, _>>()?;
     summarize(sweep, out)
 }
 
 /// Copies the row files of shard folders into `out` and rebuilds the summary there.
-pub fn merge(sweep: &Sweep, out: &Path, shards: &[PathBuf]) -> Result<SweepSummary, String> {
+pub fn merge(sweep: &Sweep, out: &Path, shards: &[PathBuf]) -> Result<SweepSummary, SweepError> {
     let rows = out.join("rows");
-    std::fs::create_dir_all(&rows).map_err(|e| format!("{}: {e}", rows.display()))?;
     for dir in shards {
-        let entries = std::fs::read_dir(dir.join("rows"))
-            .map_err(|e| format!("{}: {e}", dir.join("rows").display()))?;
+        let from = dir.join("rows");
+        let entries = std::fs::read_dir(&from).map_err(FileError::at(&from))?;
         let mut names: Vec<PathBuf> = entries
             .filter_map(|e| e.ok())
             .map(|e| e.path())
@@ -351,199 +452,12 @@ pub fn merge(sweep: &Sweep, out: &Path, shards: &[PathBuf]) -> Result<SweepSumma
             .collect();
         names.sort();
         for p in names {
-            let bytes = std::fs::read(&p).map_err(|e| format!("{}: {e}", p.display()))?;
             write_atomic(
                 &rows.join(p.file_name().expect("row files have names")),
-                &bytes,
+                &read(&p)?,
             )?;
         }
     }
-    write_atomic(
-        &out.join("sweep.toml"),
-        std::fs::read(&sweep.path)
-            .map_err(|e| e.to_string())?
-            .as_slice(),
-    )?;
+    write_atomic(&out.join("sweep.toml"), &read(&sweep.path)?)?;
     summarize(sweep, out)
-}
-
-/// One metric over the seeds of a cell.
-#[derive(Clone, Debug, PartialEq)]
-pub struct Stat {
-    /// Mean.
-    pub mean: f64,
-    /// Sample standard deviation (0 for one sample).
-    pub std: f64,
-    /// The values, in run order.
-    pub samples: Vec<f64>,
-}
-
-/// The runs of one combination of axis values.
-#[derive(Clone, Debug, PartialEq)]
-pub struct SummaryCell {
-    /// Axis values, in axis order.
-    pub values: Vec<String>,
-    /// One [`Stat`] per entry of [`METRICS`].
-    pub stats: Vec<Stat>,
-}
-
-impl SummaryCell {
-    /// The statistics of a metric by name.
-    pub fn stat(&self, metric: &str) -> &Stat {
-        &self.stats[METRICS
-            .iter()
-            .position(|m| *m == metric)
-            .expect("a metric of METRICS")]
-    }
-}
-
-/// Mean and sample standard deviation of each metric per combination of axis values.
-#[derive(Clone, Debug, PartialEq)]
-pub struct SweepSummary {
-    /// Rows present.
-    pub finished: usize,
-    /// Runs in the sweep.
-    pub total: usize,
-    /// Cells in combination order.
-    pub cells: Vec<SummaryCell>,
-}
-
-/// Rebuilds `runs.csv`, `summary.csv` and `summary.md` from the row files.
-pub fn summarize(sweep: &Sweep, out: &Path) -> Result<SweepSummary, String> {
-    let rows_dir = out.join("rows");
-    let mut runs_csv = sweep.header();
-    let mut cells: Vec<(Vec<String>, Vec<Vec<f64>>)> = Vec::new();
-    let mut finished = 0;
-    for run in &sweep.runs {
-        let path = rows_dir.join(format!("{:06}.csv", run.index));
-        let Ok(line) = std::fs::read_to_string(&path) else {
-            continue;
-        };
-        finished += 1;
-        runs_csv.push_str(&line);
-        let fields: Vec<&str> = line.trim_end().split(',').collect();
-        let skip = 2 + sweep.axes().len();
-        let values: Vec<f64> = fields[skip..]
-            .iter()
-            .map(|f| {
-                f.parse::<f64>()
-                    .map_err(|e| format!("{}: {e}", path.display()))
-            })
-            .collect::<Result<_, _>>()?;
-        let key: Vec<String> = run.values.iter().map(value_text).collect();
-        match cells.iter_mut().find(|(k, _)| *k == key) {
-            Some((_, cols)) => cols.iter_mut().zip(values).for_each(|(c, v)| c.push(v)),
-            None => cells.push((key, values.into_iter().map(|v| vec![v]).collect())),
-        }
-    }
-    let stats: Vec<SummaryCell> = cells
-        .into_iter()
-        .map(|(values, cols)| SummaryCell {
-            values,
-            stats: cols
-                .into_iter()
-                .map(|samples| {
-                    let n = samples.len() as f64;
-                    let mean = samples.iter().sum::<f64>() / n;
-                    let std = if samples.len() > 1 {
-                        (samples.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1.0)).sqrt()
-                    } else {
-                        0.0
-                    };
-                    Stat { mean, std, samples }
-                })
-                .collect(),
-        })
-        .collect();
-    let axes = sweep.axes();
-    let mut summary_csv = axes.join(",") + ",runs";
-    for m in METRICS {
-        summary_csv.push_str(&format!(",{m}_mean,{m}_std"));
-    }
-    summary_csv.push('\n');
-    let mut md = format!("# Sweep `{}`\n\nBase scenario `{}`, {} seeds per cell, {} of {} runs finished. Mean ± sample standard deviation.\n\n", sweep.file.name, sweep.file.base, sweep.file.seeds, finished, sweep.runs.len());
-    let shown = [
-        "parent_vertices",
-        "following",
-        "mapping_timesteps",
-        "coordination_timesteps",
-        "total_timesteps",
-        "coverage",
-    ];
-    md.push_str(&format!(
-        "| {} | runs | {} |\n",
-        axes.join(" | "),
-        shown.join(" | ")
-    ));
-    md.push_str(&format!(
-        "|{}\n",
-        "---|".repeat(axes.len() + 1 + shown.len())
-    ));
-    for cell in &stats {
-        let runs = cell.stats[0].samples.len();
-        summary_csv.push_str(&format!("{},{runs}", cell.values.join(",")));
-        for st in &cell.stats {
-            summary_csv.push_str(&format!(",{},{}", st.mean, st.std));
-        }
-        summary_csv.push('\n');
-        let shown_cells: Vec<String> = shown
-            .iter()
-            .map(|m| {
-                let st = cell.stat(m);
-                if *m == "coverage" {
-                    format!("{:.4} ± {:.4}", st.mean, st.std)
-                } else {
-                    format!("{:.1} ± {:.1}", st.mean, st.std)
-                }
-            })
-            .collect();
-        md.push_str(&format!(
-            "| {} | {runs} | {} |\n",
-            cell.values.join(" | "),
-            shown_cells.join(" | ")
-        ));
-    }
-    if let Some(png) = boxplot(sweep, &stats) {
-        let tmp = out.join("boxplot.png.tmp");
-        png.save_with_format(&tmp, image::ImageFormat::Png)
-            .map_err(|e| format!("{}: {e}", tmp.display()))?;
-        std::fs::rename(&tmp, out.join("boxplot.png"))
-            .map_err(|e| format!("{}: {e}", out.display()))?;
-    }
-    write_atomic(&out.join("runs.csv"), runs_csv.as_bytes())?;
-    write_atomic(&out.join("summary.csv"), summary_csv.as_bytes())?;
-    write_atomic(&out.join("summary.md"), md.as_bytes())?;
-    Ok(SweepSummary {
-        finished,
-        total: sweep.runs.len(),
-        cells: stats,
-    })
-}
-
-/// Box plots in the style of Figs. 3 and 4 when the sweep varies `coverage.children`: one
-/// panel per combination of the other axes, one stacked box per number of children.
-fn boxplot(sweep: &Sweep, cells: &[SummaryCell]) -> Option<image::RgbImage> {
-    let axes = sweep.axes();
-    let kids = axes.iter().position(|a| a == "coverage.children")?;
-    let mut panels: Vec<(String, Vec<crate::plot::StackedBox>)> = Vec::new();
-    for cell in cells {
-        let title: Vec<&str> = cell
-            .values
-            .iter()
-            .enumerate()
-            .filter(|(i, _)| *i != kids)
-            .map(|(_, v)| v.as_str())
-            .collect();
-        let title = title.join(" ");
-        let b = crate::plot::StackedBox {
-            label: cell.values[kids].clone(),
-            mapping: cell.stat("mapping_timesteps").samples.clone(),
-            coordination: cell.stat("coordination_timesteps").samples.clone(),
-        };
-        match panels.iter_mut().find(|(t, _)| *t == title) {
-            Some((_, boxes)) => boxes.push(b),
-            None => panels.push((title, vec![b])),
-        }
-    }
-    Some(crate::plot::stacked_boxes(&panels))
 }

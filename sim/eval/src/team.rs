@@ -1,11 +1,15 @@
 //! A coverage mission run in lockstep (seed 002, Section V.B): its figures against ground
 //! truth, and its image database and plots as files.
 
-use crate::RobotMetrics;
-use hetsim_msgs::{wrap_angle, yaw_of, Pose, TeamReport};
+use crate::metrics::RobotMetrics;
+use crate::scene::{camera_of, direction_rad, truth_at};
+use crate::stats::MeanStd;
+use hetsim_coverage::{TeamReport, TEAM_ARTIFACT};
+use hetsim_engine::RunOutput;
+use hetsim_msgs::{wrap_angle, yaw_of, Pose};
 use hetsim_physics::Physics;
-use hetsim_render::{mount_to_optical, Intrinsics};
-use hetsim_scene::{Scenario, Sensor};
+use hetsim_render::mount_to_optical;
+use hetsim_scene::Scenario;
 use nalgebra::{Isometry3, Point3};
 use serde::Serialize;
 use serde_json::json;
@@ -19,28 +23,17 @@ pub struct TeamOutcome {
     pub report: TeamReport,
 }
 
-/// Mean and standard deviation.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
-pub struct MeanStd {
-    /// Mean.
-    pub mean: f64,
-    /// Standard deviation (population).
-    pub std: f64,
-}
-
-impl MeanStd {
-    /// Of some values (zeros when there are none).
-    pub fn of(values: &[f64]) -> Self {
-        if values.is_empty() {
-            return Self::default();
-        }
-        let n = values.len() as f64;
-        let mean = values.iter().sum::<f64>() / n;
-        let var = values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / n;
-        Self {
-            mean,
-            std: var.sqrt(),
-        }
+impl TeamOutcome {
+    /// The coverage parent's report among a run's artifacts, if the run had a coverage parent.
+    pub fn of(output: &RunOutput) -> Option<Self> {
+        output
+            .artifacts_named(TEAM_ARTIFACT)
+            .find_map(|(robot, a)| {
+                Some(Self {
+                    parent: robot.to_string(),
+                    report: a.decode()?,
+                })
+            })
     }
 }
 
@@ -94,38 +87,6 @@ pub struct TeamMetrics {
     /// Database images with another robot in view farther than r_los (the seed's planner
     /// does not consider robots beyond r_los; a 1.5 m parent is visible across a room).
     pub images_with_distant_robot_in_view: usize,
-}
-
-/// The pose in a ground-truth track nearest a stamp.
-pub(crate) fn truth_at(track: &[(u64, Pose)], stamp_ns: u64) -> Pose {
-    let i = track.partition_point(|(t, _)| *t < stamp_ns);
-    let candidates = [i.saturating_sub(1), i.min(track.len() - 1)];
-    let best = candidates
-        .into_iter()
-        .min_by_key(|&k| track[k].0.abs_diff(stamp_ns))
-        .expect("two candidates");
-    track[best].1
-}
-
-/// A robot's (first) pinhole camera: its mount in the body frame, its intrinsics and its
-/// pixel noise.
-pub(crate) fn camera_of(robot: &hetsim_scene::ResolvedRobot) -> Option<(Pose, Intrinsics, f64)> {
-    robot.model.sensors.iter().find_map(|s| match s {
-        Sensor::Camera {
-            mount,
-            width_px,
-            height_px,
-            hfov_deg,
-            intrinsics,
-            pixel_noise_sigma,
-            ..
-        } => Some((
-            hetsim_msgs::pose_from_xyz_rpy(mount.xyz_m, mount.rpy_deg.map(f64::to_radians)),
-            crate::cameras::intrinsics_of(*width_px, *height_px, *hfov_deg, intrinsics.as_ref()),
-            *pixel_noise_sigma,
-        )),
-        _ => None,
-    })
 }
 
 /// The distance to the nearest other robot that appears in the image child `robot` took at
@@ -183,11 +144,16 @@ impl TeamMetrics {
     /// metrics.
     pub fn compute(
         scenario: &Scenario,
-        physics: &Physics,
         outcome: &TeamOutcome,
-        truth: &[Vec<(u64, Pose)>],
+        output: &RunOutput,
         robots: &[RobotMetrics],
     ) -> Self {
+        // Line of sight through the static world only (robots are ignored), so a fresh
+        // physics world of the scenario answers as the run's would.
+        let physics = Physics::for_scenario(scenario, &hetsim_core::Streams::new(scenario.seed));
+        let physics = &physics;
+        let truth: Vec<Vec<(u64, Pose)>> = output.truth.iter().map(|(_, t)| t.clone()).collect();
+        let truth = &truth[..];
         let r = &outcome.report;
         let grid = &scenario
             .world
@@ -203,7 +169,7 @@ impl TeamMetrics {
         let (mut pos, mut tracked, mut head, mut compass, mut est) =
             (Vec::new(), Vec::new(), Vec::new(), Vec::new(), Vec::new());
         let (mut in_view, mut distant) = (0, 0);
-        let r_los = crate::coverage::coverage_params(scenario).r_los_m;
+        let r_los = hetsim_stacks::coverage_params(scenario).r_los_m;
         for d in &r.database {
             let Some(i) = index(&d.child) else { continue };
             let centre = grid.centre_of(d.vertex.0, d.vertex.1);
@@ -246,11 +212,11 @@ impl TeamMetrics {
             abandoned: r.abandoned.clone(),
             finished: r.finished_ns.is_some(),
             mission_min: end_ns as f64 / 60e9,
-            position_error_m: MeanStd::of(&pos),
-            tracked_position_error_m: MeanStd::of(&tracked),
-            heading_error_deg: MeanStd::of(&head),
-            compass_heading_error_deg: MeanStd::of(&compass),
-            estimate_error_m: MeanStd::of(&est),
+            position_error_m: MeanStd::population(&pos),
+            tracked_position_error_m: MeanStd::population(&tracked),
+            heading_error_deg: MeanStd::population(&head),
+            compass_heading_error_deg: MeanStd::population(&compass),
+            estimate_error_m: MeanStd::population(&est),
             collisions: robots.iter().map(|m| m.collisions).sum(),
             tracking_losses: r.tracking_losses,
             resent_orders: r.resent_orders,
@@ -259,12 +225,6 @@ impl TeamMetrics {
             localization: Vec::new(),
         }
     }
-}
-
-/// The direction of mapping of the scenario's `[coverage]` table, radians from east.
-pub fn direction_rad(scenario: &Scenario) -> f64 {
-    let (x, y) = crate::coverage::coverage_params(scenario).direction.unit();
-    y.atan2(x)
 }
 
 /// The mission's files: the database (`coverage/images/<col>_<row>.png` and

@@ -69,6 +69,26 @@ impl Intrinsics {
     }
 }
 
+/// Pinhole intrinsics of a camera sensor: given, or from resolution and field of view.
+pub fn intrinsics_of(
+    width: u32,
+    height: u32,
+    hfov_deg: Option<f64>,
+    k: Option<&hetsim_scene::Intrinsics>,
+) -> Intrinsics {
+    match k {
+        Some(k) => Intrinsics {
+            width,
+            height,
+            alpha_u: k.alpha_u,
+            alpha_v: k.alpha_v,
+            u0: k.u0,
+            v0: k.v0,
+        },
+        None => Intrinsics::from_hfov(width, height, hfov_deg.unwrap_or(60.0)),
+    }
+}
+
 /// `mount_from_optical`: sensor mounts follow the body convention (x along the optical axis,
 /// y left, z up); the optical frame is x right, y down, z forward.
 pub fn mount_to_optical() -> UnitQuaternion<f64> {

@@ -15,7 +15,7 @@ mod camera;
 mod gpu;
 mod mesh;
 
-pub use camera::{mount_to_optical, CameraView, Intrinsics};
+pub use camera::{intrinsics_of, mount_to_optical, CameraView, Intrinsics};
 pub use gpu::{AdapterSummary, Frame, RenderError, RenderOptions, Renderer};
 pub use mesh::{RobotDraw, RobotPart};
 

@@ -1,10 +1,38 @@
-//! Which robot software runs on which robot.
+//! Which robot software runs on which robot: the wiring between scenario files and the robot
+//! crates. The engine knows no robot software; the binary, the tests and the sweeps build one
+//! stack per robot here and hand them to `hetsim_engine::run`.
+//!
+//! | mission (scenario) | robot | stack |
+//! |---|---|---|
+//! | `waypoints`, `lawnmower` | helicopter | [`HeliPilot`] |
+//! | `waypoints`, `grid_goals` | wheeled | [`GroundPilot`] |
+//! | any of those | with a stereo bench | the SLAM stack (`hetsim-slam`) around the pilot |
+//! | `coverage_parent` | | [`hetsim_coverage::ParentStack`] |
+//! | `coverage_child` | | [`hetsim_coverage::ChildStack`] |
 
+use hetsim_core::Streams;
+use hetsim_coverage::{CoverageParams, Direction};
 use hetsim_msgs::{Mission, RobotStack};
 use hetsim_pilot::{
     lawnmower, GroundPilot, GroundPilotParams, HeliPilot, HeliPilotParams, Steering,
 };
 use hetsim_scene::{DriveKind, MissionSpec, ResolvedRobot, Scenario, Sensor, SteeringKind};
+
+/// One stack per robot of the scenario, in scenario order; the SLAM stacks open loop (no
+/// events, no radio) when `open_loop`. Each stack's random seed comes from its own named
+/// stream (`<robot>/vo/ransac`).
+pub fn build_stacks(scenario: &Scenario, open_loop: bool) -> Vec<Box<dyn RobotStack>> {
+    let streams = Streams::new(scenario.seed);
+    scenario
+        .robots
+        .iter()
+        .map(|r| {
+            let seed =
+                rand::Rng::next_u64(&mut streams.stream(&format!("{}/vo/ransac", r.spec.name)));
+            build_stack(scenario, r, seed, open_loop)
+        })
+        .collect()
+}
 
 /// The stack for a robot: the waypoint followers of `hetsim-pilot` on ground truth, and, for
 /// robots with a stereo bench, stereo visual odometry and the local level of the SLAM beside
@@ -28,7 +56,7 @@ pub fn build_stack(
             ..
         } => Some((
             name,
-            crate::cameras::intrinsics_of(*width_px, *height_px, *hfov_deg, intrinsics.as_ref()),
+            hetsim_render::intrinsics_of(*width_px, *height_px, *hfov_deg, intrinsics.as_ref()),
             *baseline_m,
             mount,
         )),
@@ -197,7 +225,7 @@ fn mission(scenario: &Scenario, spec: &MissionSpec) -> Mission {
         }
         MissionSpec::CoverageParent => match &scenario.world.grid {
             Some(g) => {
-                let params = crate::coverage::coverage_params(scenario);
+                let params = coverage_params(scenario);
                 let children = scenario
                     .robots
                     .iter()
@@ -243,5 +271,44 @@ fn mission(scenario: &Scenario, spec: &MissionSpec) -> Mission {
             },
             None => Mission::Idle,
         },
+    }
+}
+
+/// Planning parameters from the scenario's `[coverage]` table and its robots.
+pub fn coverage_params(scenario: &Scenario) -> CoverageParams {
+    let spec = scenario.file.coverage.clone().unwrap_or_default();
+    let radius = |model: &str, default: f64| {
+        scenario
+            .robots
+            .iter()
+            .find(|r| r.spec.model == model)
+            .map_or(default, |r| {
+                r.model.body.length_m.max(r.model.body.width_m) / 2.0
+            })
+    };
+    let direction = match spec.direction.as_str() {
+        "north" => Direction::North,
+        "west" => Direction::West,
+        "south" => Direction::South,
+        _ => Direction::East,
+    };
+    CoverageParams {
+        r_los_m: spec.r_los_m,
+        direction,
+        child_fov_deg: spec.child_fov_deg,
+        view_margin_deg: spec.view_margin_deg,
+        parent_radius_m: radius("parent", 0.225),
+        child_radius_m: radius("ctbot", 0.06),
+        children: spec
+            .children
+            .unwrap_or_else(|| {
+                scenario
+                    .robots
+                    .iter()
+                    .filter(|r| r.spec.model == "ctbot")
+                    .count()
+            })
+            .max(1),
+        f_factor: spec.f_factor,
     }
 }

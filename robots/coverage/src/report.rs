@@ -1,0 +1,54 @@
+//! What a coverage parent publishes for evaluation (as the `coverage/team` artifact): the
+//! plan's figures, the image database and the children's tracked paths.
+
+use hetsim_msgs::Image;
+use serde::{Deserialize, Serialize};
+
+/// The name of the report artifact a [`crate::ParentStack`] publishes.
+pub const TEAM_ARTIFACT: &str = "coverage/team";
+
+/// One image of a coverage mission's database, as the parent stored it.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct DatabaseImage {
+    /// The grid vertex `(col, row)` it was taken at.
+    pub vertex: (usize, usize),
+    /// The child that took it.
+    pub child: String,
+    /// The parent's estimate of the grab position (tracker), metres.
+    pub estimated_xy: [f64; 2],
+    /// The child's compass heading at the grab, radians.
+    pub estimated_heading_rad: f64,
+    /// The image (its stamp is the grab time).
+    pub image: Image,
+}
+
+/// Positions of a robot over time: `(stamp_ns, [x, y])`, metres.
+pub type TrackedPath = Vec<(u64, [f64; 2])>;
+
+/// What a coverage parent reports at the end of a run.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct TeamReport {
+    /// Free vertices of the map |V|.
+    pub vertices: usize,
+    /// Parent vertices V_p in tour order, `(col, row)`.
+    pub parent_vertices: Vec<(usize, usize)>,
+    /// Vertices the plan could not image (uncoverable or unreached), `(col, row)`.
+    pub unplanned: Vec<(usize, usize)>,
+    /// Goals a tracked child could not be brought within twice the arrival distance of after
+    /// three corrections (blocked), `(col, row)`; the mission goes on from where it is.
+    pub abandoned: Vec<(usize, usize)>,
+    /// The image database.
+    pub database: Vec<DatabaseImage>,
+    /// Times a child expected in view was not tracked and had to be stopped.
+    pub tracking_losses: u32,
+    /// Orders sent again because no acknowledgement came.
+    pub resent_orders: u32,
+    /// When the last step of the plan was done, nanoseconds; `None` while unfinished.
+    pub finished_ns: Option<u64>,
+    /// Steps of the plan (timesteps) executed, and in the plan.
+    pub steps_done: usize,
+    /// Steps of the plan.
+    pub steps_total: usize,
+    /// Every child's positions as the parent's tracker measured them.
+    pub tracked_paths: Vec<(String, TrackedPath)>,
+}

@@ -1,0 +1,39 @@
+//! What a SLAM stack publishes for evaluation (as the `slam/report` artifact): its sub-map
+//! origins with covariance, the covariance of every pose of its trajectory, its events.
+
+use hetsim_msgs::Pose;
+use serde::{Deserialize, Serialize};
+
+/// The name of the report artifact a [`crate::stack::SlamStack`] publishes.
+pub const REPORT_ARTIFACT: &str = "slam/report";
+
+/// An event of a SLAM stack's global level, with the robot's estimate of its own pose
+/// just before and just after the graph was optimized with it.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SlamEvent {
+    /// `"gps"`, `"rendezvous"` or `"image_match"`.
+    pub kind: String,
+    /// The frame at which it happened, nanoseconds.
+    pub stamp_ns: u64,
+    /// The other robot (empty for a GPS fix).
+    pub other: String,
+    /// The robot's world pose estimate before.
+    pub before: Pose,
+    /// And after.
+    pub after: Pose,
+}
+
+/// What a SLAM stack built, for the evaluation: sub-map origins with covariance, the
+/// covariance of every pose of its `slam` trajectory, and its events.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct SlamReport {
+    /// Its sub-map origins: stamp, optimized world pose, marginal covariance of the right
+    /// perturbation `(δt, δθ)` (6 x 6, column-major).
+    pub origins: Vec<(u64, Pose, Vec<f64>)>,
+    /// Covariance of each pose of the `slam` trajectory, in its order (same convention).
+    pub covariances: Vec<Vec<f64>>,
+    /// Events in order.
+    pub events: Vec<SlamEvent>,
+    /// Counters (observations used and gated, shares sent and received, unresolved links).
+    pub counters: std::collections::BTreeMap<String, u64>,
+}

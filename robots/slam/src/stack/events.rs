@@ -1,0 +1,204 @@
+//! The SLAM stack's global level: sub-maps closed at their origins, GPS, rendezvous and image-match events, the team's graph exchanged over the radio.
+
+use super::*;
+
+impl SlamStack {
+    /// Closes the current sub-map at the frame `stamp`: the robot pose in it becomes the
+    /// relative transform to a new node, and a new local map starts there.
+    pub(super) fn new_submap(&mut self, stamp: u64) {
+        let relative = self.map.pose();
+        // Information of the relative transform. The filter's own covariance comes from
+        // VO's, which only knows its random errors; the drift VO shows against the truth
+        // (1 to 6 % of the distance in the village) is systematic. The edge therefore gets a
+        // drift term of `edge_drift` of the distance travelled in the sub-map (each axis) and
+        // 0.1 degree per metre, so that GPS events can pull the origins back.
+        let d = relative.translation.vector.norm();
+        let (st, sr) = (
+            self.params.edge_drift * d + 1e-3,
+            (0.1f64.to_radians() * d).max(1e-4),
+        );
+        let cov = self.map.pose_covariance()
+            + Matrix6::from_diagonal(&nalgebra::Vector6::new(
+                st * st,
+                st * st,
+                st * st,
+                sr * sr,
+                sr * sr,
+                sr * sr,
+            ));
+        let info = cov.try_inverse().unwrap_or_else(Matrix6::identity);
+        let last = self.submaps() - 1;
+        self.closed_points.extend(
+            self.map
+                .euclidean_points()
+                .into_iter()
+                .map(|(_, p)| (last, p)),
+        );
+        self.closed_segments.extend(
+            self.map
+                .euclidean_segments(self.params.line_output_spread)
+                .into_iter()
+                .map(|(_, e)| (last, e)),
+        );
+        self.global
+            .as_mut()
+            .expect("a sub-map closes after the first pair")
+            .push(stamp, relative, info);
+        let open = self.open_origins[last] * relative;
+        self.open_origins.push(open);
+        self.map = LocalMap::new();
+        self.patches.clear();
+    }
+
+    /// The origin for an event at frame `stamp`: a new sub-map starts there (the seed starts
+    /// one after every event), unless one already started at this frame.
+    pub(super) fn event_node(&mut self, stamp: u64) -> usize {
+        let g = self
+            .global
+            .as_ref()
+            .expect("events come after the first pair");
+        if g.own.stamps.last() != Some(&stamp) {
+            self.new_submap(stamp);
+        }
+        self.submaps() - 1
+    }
+
+    /// Optimizes the team's graph after an event and logs it; the part goes to the peers.
+    pub(super) fn after_event(&mut self, kind: &str, other: &str, stamp: u64, before: Pose) {
+        let g = self
+            .global
+            .as_mut()
+            .expect("events come after the first pair");
+        g.optimize();
+        let after = self.world_pose();
+        self.events.push(SlamEvent {
+            kind: kind.to_string(),
+            stamp_ns: stamp,
+            other: other.to_string(),
+            before,
+            after,
+        });
+        self.last_event_ns = stamp;
+        self.share(stamp);
+    }
+
+    /// A GPS fix as an event (seed Section III): a new sub-map starts at the robot's pose, the
+    /// fix constrains its origin, and the graph is optimized.
+    pub(super) fn gps_event(&mut self, fix: &hetsim_msgs::GpsFix, stamp: u64) {
+        let before = self.world_pose();
+        let node = self.event_node(stamp);
+        let s2 = fix.sigma_m * fix.sigma_m;
+        let offset = self.params.gps_offset;
+        self.global
+            .as_mut()
+            .expect("after the first pair")
+            .fix(Fix {
+                node,
+                offset,
+                position: Vector3::from(fix.position_m),
+                info: Matrix3::identity() / s2,
+            });
+        self.after_event("gps", "", stamp, before);
+    }
+
+    /// A link event (seed Sections III and V): the origin made now is linked to the other
+    /// robot's origin of stamp `link.1` by the measured `self_from_other` `z`, whose position
+    /// and rotation deviations are `sigmas`. For a rendezvous that is the origin the other
+    /// robot made at the same frame (it saw this robot too); for an image match, the past
+    /// origin whose frame matched.
+    pub(super) fn link_event(
+        &mut self,
+        kind: &str,
+        link: (&str, u64),
+        z: Pose,
+        sigmas: (f64, f64),
+        stamp: u64,
+    ) {
+        let (other, other_stamp_ns) = link;
+        let before = self.world_pose();
+        let node = self.event_node(stamp);
+        self.global
+            .as_mut()
+            .expect("after the first pair")
+            .link(Link {
+                kind: kind.to_string(),
+                node,
+                other: other.to_string(),
+                other_stamp_ns,
+                z,
+                info: relative_info(sigmas.0, sigmas.1),
+            });
+        self.peers.insert(other.to_string());
+        self.after_event(kind, other, stamp, before);
+    }
+
+    /// Whether a link event of `kind` with `other` at `stamp_ns` is due: none with that
+    /// robot in the last `period_s`.
+    pub(super) fn link_due(
+        &self,
+        kind: &'static str,
+        other: &str,
+        stamp_ns: u64,
+        period_s: f64,
+    ) -> bool {
+        self.last_link
+            .get(&(kind, other.to_string()))
+            .is_none_or(|t| stamp_ns >= t + (period_s * 1e9) as u64)
+    }
+
+    /// The closed sub-maps' landmarks and the current map's, with their sub-maps, through the
+    /// graph's origins by `place` (nothing before the first pair).
+    pub(super) fn in_world<T: Copy, W>(
+        &self,
+        closed: &[(usize, T)],
+        current: impl Iterator<Item = T>,
+        place: impl Fn(&Pose, T) -> W,
+    ) -> Vec<(usize, W)> {
+        let Some(g) = self.global.as_ref() else {
+            return Vec::new();
+        };
+        let node = g.len() - 1;
+        closed
+            .iter()
+            .copied()
+            .chain(current.map(|x| (node, x)))
+            .map(|(k, x)| (k, place(&g.origin(k), x)))
+            .collect()
+    }
+
+    /// Sends this robot's part of the graph to every robot met.
+    pub(super) fn share(&mut self, now_ns: u64) {
+        let Some(g) = self.global.as_ref() else {
+            return;
+        };
+        if !self.params.cooperative || self.peers.is_empty() {
+            return;
+        }
+        let payload = serde_json::to_vec(&g.own).expect("a share serializes");
+        for to in &self.peers {
+            self.outgoing.push(Outgoing {
+                to: to.clone(),
+                topic: SHARE_TOPIC.to_string(),
+                payload: payload.clone(),
+            });
+        }
+        self.count("shares_sent", self.peers.len() as u64);
+        self.last_share_ns = Some(now_ns);
+    }
+
+    /// Another robot's part arrived.
+    pub(super) fn receive(&mut self, d: &Delivered) {
+        let Ok(share) = serde_json::from_slice::<Share>(&d.payload) else {
+            self.count("shares_malformed", 1);
+            return;
+        };
+        let Some(g) = self.global.as_mut() else {
+            return;
+        };
+        self.peers.insert(share.robot.clone());
+        if g.receive(share) {
+            g.optimize();
+        }
+        self.count("shares_received", 1);
+    }
+}

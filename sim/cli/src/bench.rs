@@ -1,0 +1,511 @@
+//! `hetsim bench`: the speed figures recorded in `results/README.md`, as a Markdown table on
+//! a terminal or, with `--json`, as one JSON object for scripts and CI.
+
+use anyhow::{Context, Result};
+use hetsim_engine::RunOptions;
+use hetsim_render::{CameraView, Intrinsics, RenderOptions, Renderer};
+use hetsim_scene::{load_scenario, LoadOptions, Scenario, Sensor};
+use serde_json::{json, Map, Value};
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// One bench's figures: named columns, one row per measured case.
+pub struct Figures {
+    /// Which bench.
+    bench: &'static str,
+    /// Facts about the measurement (adapter, frame size).
+    about: Map<String, Value>,
+    /// `(key, header)` of each column, in order.
+    columns: Vec<(&'static str, &'static str)>,
+    /// Rows, each keyed by column key.
+    rows: Vec<Map<String, Value>>,
+}
+
+impl Figures {
+    fn new(bench: &'static str, columns: &[(&'static str, &'static str)]) -> Self {
+        Self {
+            bench,
+            about: Map::new(),
+            columns: columns.to_vec(),
+            rows: Vec::new(),
+        }
+    }
+
+    fn row(&mut self, values: Vec<Value>) {
+        debug_assert_eq!(values.len(), self.columns.len());
+        self.rows.push(
+            self.columns
+                .iter()
+                .map(|(k, _)| k.to_string())
+                .zip(values)
+                .collect(),
+        );
+    }
+
+    /// Prints the figures: JSON, or a Markdown table with the facts above it.
+    pub fn print(&self, as_json: bool) {
+        if as_json {
+            let doc = json!({"bench": self.bench, "about": self.about, "rows": self.rows});
+            println!(
+                "{}",
+                serde_json::to_string_pretty(&doc).expect("JSON encodes")
+            );
+            return;
+        }
+        for (k, v) in &self.about {
+            println!(
+                "{k}: {}",
+                v.as_str().map_or_else(|| v.to_string(), str::to_string)
+            );
+        }
+        if !self.about.is_empty() {
+            println!();
+        }
+        let headers: Vec<&str> = self.columns.iter().map(|(_, h)| *h).collect();
+        println!("| {} |", headers.join(" | "));
+        println!("|{}", "---|".repeat(headers.len()));
+        for row in &self.rows {
+            let cells: Vec<String> = self
+                .columns
+                .iter()
+                .map(|(k, _)| match &row[*k] {
+                    Value::Number(n) => match n.as_f64() {
+                        Some(x) if n.is_f64() => format!("{x:.2}"),
+                        _ => n.to_string(),
+                    },
+                    Value::String(s) => s.clone(),
+                    other => other.to_string(),
+                })
+                .collect();
+            println!("| {} |", cells.join(" | "));
+        }
+    }
+}
+
+/// Wall-clock start of a measurement. Wall time goes to `timing.json` and `hetsim bench`
+/// only, never into anything the digest covers.
+#[allow(clippy::disallowed_methods)]
+pub fn wall_clock() -> Instant {
+    Instant::now()
+}
+
+/// A scenario with its own seed, run for `secs` sim seconds.
+fn load_for(path: &Path, secs: f64) -> Result<Scenario> {
+    Ok(load_scenario(
+        path,
+        &LoadOptions {
+            seed: None,
+            duration_secs: Some(secs),
+        },
+    )?)
+}
+
+/// The scenario with every robot's sensors (cameras included) removed: physics and ground
+/// truth only.
+fn without_sensors(mut scenario: Scenario) -> Scenario {
+    for r in &mut scenario.robots {
+        r.model.sensors.clear();
+    }
+    scenario
+}
+
+/// Runs a scenario with its stacks, no cameras; returns (ticks, wall seconds).
+fn time_run(scenario: &Scenario) -> Result<(u64, f64)> {
+    let stacks = hetsim_stacks::build_stacks(scenario, false);
+    let start = wall_clock();
+    let out = hetsim_engine::run(scenario, stacks, |_, _| {}, RunOptions::default())?;
+    Ok((out.ticks, start.elapsed().as_secs_f64()))
+}
+
+/// Sim seconds per wall second with physics and ground truth only.
+pub fn physics(scenarios: &[PathBuf], sim_secs: f64) -> Result<Figures> {
+    let mut f = Figures::new(
+        "physics",
+        &[
+            ("scenario", "scenario"),
+            ("robots", "robots"),
+            ("sim_s", "sim s"),
+            ("wall_s", "wall s"),
+            ("sim_per_wall", "sim s / wall s"),
+        ],
+    );
+    for s in scenarios {
+        let loaded = without_sensors(load_for(s, sim_secs)?);
+        let (ticks, wall) = time_run(&loaded)?;
+        let sim = loaded.clock.time_secs(ticks);
+        f.row(vec![
+            json!(loaded.file.name),
+            json!(loaded.robots.len()),
+            json!(sim),
+            json!(wall),
+            json!(sim / wall),
+        ]);
+    }
+    Ok(f)
+}
+
+/// The cost of one laser scan, and of a tick with and without the non-visual sensors.
+pub fn sensors(scenarios: &[PathBuf], sim_secs: f64) -> Result<Figures> {
+    let mut f = Figures::new(
+        "sensors",
+        &[
+            ("scenario", "scenario"),
+            ("laser_scan_us", "laser scan (481 rays) us"),
+            ("tick_all_sensors_us", "tick, all sensors us"),
+            ("tick_bare_us", "tick, physics + truth only us"),
+        ],
+    );
+    for s in scenarios {
+        let loaded = load_for(s, sim_secs)?;
+        let mut physics =
+            hetsim_physics::Physics::for_scenario(&loaded, &hetsim_core::Streams::new(loaded.seed));
+        physics.step();
+        let origin = physics.pose(0).translation.vector;
+        let o = [origin.x, origin.y, origin.z + 0.3];
+        let scans = 200;
+        let start = wall_clock();
+        let mut hits = 0usize;
+        for _ in 0..scans {
+            for b in 0..481 {
+                let a = (-120.0 + 0.5 * b as f64).to_radians();
+                hits += usize::from(
+                    physics
+                        .cast_ray(o, [a.cos(), a.sin(), 0.0], 20.0, Some(0))
+                        .is_some(),
+                );
+            }
+        }
+        std::hint::black_box(hits);
+        let scan_us = start.elapsed().as_secs_f64() * 1e6 / scans as f64;
+        let (ticks, wall) = time_run(&loaded)?;
+        let with = wall * 1e6 / ticks as f64;
+        let (ticks, wall) = time_run(&without_sensors(loaded.clone()))?;
+        let without = wall * 1e6 / ticks as f64;
+        f.row(vec![
+            json!(loaded.file.name),
+            json!(scan_us),
+            json!(with),
+            json!(without),
+        ]);
+    }
+    Ok(f)
+}
+
+/// Coverage planning time per scenario (median of 5).
+pub fn coverage(scenarios: &[PathBuf]) -> Result<Figures> {
+    let mut f = Figures::new(
+        "coverage",
+        &[
+            ("scenario", "scenario"),
+            ("vertices", "vertices"),
+            ("parent_vertices", "parent vertices"),
+            ("timesteps", "timesteps"),
+            ("planning_ms", "planning ms (median of 5)"),
+        ],
+    );
+    for s in scenarios {
+        let loaded = load_scenario(s, &LoadOptions::default())?;
+        let mut times = Vec::new();
+        let mut last = None;
+        for _ in 0..5 {
+            let start = wall_clock();
+            last = Some(hetsim_eval::coverage::plan_scenario(&loaded)?);
+            times.push(start.elapsed().as_secs_f64() * 1e3);
+        }
+        times.sort_by(f64::total_cmp);
+        let (_, _, plan) = last.expect("five plans");
+        f.row(vec![
+            json!(loaded.file.name),
+            json!(plan.vertices),
+            json!(plan.parent_vertices.len()),
+            json!(plan.mapping_timesteps + plan.coordination_timesteps),
+            json!(times[2]),
+        ]);
+    }
+    Ok(f)
+}
+
+/// Frames per second with readback on the chosen adapter: 1024x768 mono, 1024x768 stereo
+/// pairs, 120x88, from the first robot's start pose of each scenario.
+pub fn render(scenarios: &[PathBuf], options: &RenderOptions) -> Result<Figures> {
+    let mut f = Figures::new(
+        "render",
+        &[
+            ("scenario", "scenario"),
+            ("fps_1024x768", "1024x768 frames/s"),
+            ("stereo_pairs_per_s_1024x768", "1024x768 stereo pairs/s"),
+            ("fps_120x88", "120x88 frames/s"),
+        ],
+    );
+    for s in scenarios {
+        let loaded = load_scenario(s, &LoadOptions::default())?;
+        let mut renderer = Renderer::new(&loaded.world, options)?;
+        if f.about.is_empty() {
+            let a = renderer.adapter();
+            f.about.insert(
+                "adapter".into(),
+                json!(format!("{} ({}, {})", a.name, a.backend, a.driver)),
+            );
+        }
+        let r = &loaded.robots[0].spec.start;
+        let ground = loaded.world.ground_z(r.x, r.y);
+        let mut rates = Vec::new();
+        for (k, pair) in [
+            (Intrinsics::from_hfov(1024, 768, 60.0), false),
+            (Intrinsics::from_hfov(1024, 768, 60.0), true),
+            (Intrinsics::from_hfov(120, 88, 80.0), false),
+        ] {
+            let frames = if k.width > 200 { 40 } else { 300 };
+            let views = |i: usize| {
+                let yaw = r.yaw_deg.to_radians() + 0.01 * i as f64;
+                let mount =
+                    hetsim_msgs::pose_from_xyz_rpy([r.x, r.y, ground + 1.2], [0.0, 0.1, yaw]);
+                let mut v = vec![CameraView::from_mount(k, &mount, [0.02, 3000.0])];
+                if pair {
+                    let right = mount * hetsim_msgs::pose_from_xyz_rpy([0.0, -0.35, 0.0], [0.0; 3]);
+                    v.push(CameraView::from_mount(k, &right, [0.02, 3000.0]));
+                }
+                v
+            };
+            renderer.render(&views(0));
+            let start = wall_clock();
+            for i in 0..frames {
+                std::hint::black_box(renderer.render(&views(i)));
+            }
+            rates.push(frames as f64 / start.elapsed().as_secs_f64());
+        }
+        f.row(vec![
+            json!(loaded.file.name),
+            json!(rates[0]),
+            json!(rates[1]),
+            json!(rates[2]),
+        ]);
+    }
+    Ok(f)
+}
+
+/// The first stereo bench of a scenario's robots: (robot index, intrinsics, baseline, mount).
+fn stereo_bench(scenario: &Scenario) -> Option<(usize, Intrinsics, f64, hetsim_msgs::Pose)> {
+    scenario.robots.iter().enumerate().find_map(|(i, r)| {
+        r.model.sensors.iter().find_map(|s| match s {
+            Sensor::StereoCamera {
+                width_px,
+                height_px,
+                hfov_deg,
+                intrinsics,
+                baseline_m,
+                mount,
+                ..
+            } => Some((
+                i,
+                hetsim_render::intrinsics_of(*width_px, *height_px, *hfov_deg, intrinsics.as_ref()),
+                *baseline_m,
+                hetsim_msgs::pose_from_xyz_rpy(mount.xyz_m, mount.rpy_deg.map(f64::to_radians)),
+            )),
+            _ => None,
+        })
+    })
+}
+
+/// Milliseconds per stereo frame for Harris, stereo matching, a VO step and line segments,
+/// on rendered frames of the scenario's first stereo robot driving 6 cm per frame from its
+/// start.
+pub fn vision(scenario: &Path) -> Result<Figures> {
+    use hetsim_vision::{harris, segments, stereo, vo::StereoVo, Camera, Gray};
+    let loaded = load_scenario(scenario, &LoadOptions::default())?;
+    let (robot, k, baseline, mount) = stereo_bench(&loaded).with_context(|| {
+        format!(
+            "{}: no robot with a stereo_camera to measure",
+            scenario.display()
+        )
+    })?;
+    let mut renderer = Renderer::new(&loaded.world, &RenderOptions::default())?;
+    let bench = stereo::Bench {
+        camera: Camera {
+            alpha_u: k.alpha_u,
+            alpha_v: k.alpha_v,
+            u0: k.u0,
+            v0: k.v0,
+        },
+        baseline_m: baseline,
+    };
+    let (w, h) = (k.width as usize, k.height as usize);
+    let d = &loaded.robots[robot].spec.start;
+    let pair = |renderer: &mut Renderer, forward: f64| {
+        let yaw = d.yaw_deg.to_radians();
+        let (x, y) = (d.x + forward * yaw.cos(), d.y + forward * yaw.sin());
+        let body =
+            hetsim_msgs::pose_from_xyz_rpy([x, y, loaded.world.ground_z(x, y)], [0.0, 0.0, yaw]);
+        let left = body * mount;
+        let right = left * hetsim_msgs::pose_from_xyz_rpy([0.0, -baseline, 0.0], [0.0; 3]);
+        let views: Vec<CameraView> = [left, right]
+            .iter()
+            .map(|m| CameraView::from_mount(k, m, [0.05, 3000.0]))
+            .collect();
+        let f = renderer.render(&views);
+        (
+            Gray::from_rgb(w, h, &f[0].rgb),
+            Gray::from_rgb(w, h, &f[1].rgb),
+        )
+    };
+    let frames: Vec<(Gray, Gray)> = (0..11)
+        .map(|i| pair(&mut renderer, 0.06 * i as f64))
+        .collect();
+    let (mut t_detect, mut t_stereo, mut t_vo, mut t_vo_lost) = (0.0, 0.0, 0.0, 0.0);
+    let (mut t_lsd, mut t_track, mut n_segments) = (0.0, 0.0, 0usize);
+    let mut previous: Vec<segments::Segment> = Vec::new();
+    let mut vo = StereoVo::new(bench);
+    let mut rng = <rand_chacha::ChaCha8Rng as rand::SeedableRng>::seed_from_u64(0);
+    for (i, (l, r)) in frames.iter().enumerate() {
+        let start = wall_clock();
+        let corners = harris::detect(l, 0.005, 8);
+        let chosen = harris::select_new(&corners, l.width, l.height, &[], 25, 8.0);
+        t_detect += start.elapsed().as_secs_f64();
+        let start = wall_clock();
+        std::hint::black_box(stereo::match_stereo(
+            l,
+            r,
+            &bench,
+            &chosen,
+            [0.5, 120.0],
+            0.85,
+        ));
+        t_stereo += start.elapsed().as_secs_f64();
+        let start = wall_clock();
+        std::hint::black_box(vo.process(l, r, &mut rng));
+        // The first pair only initializes; the second searches five times wider (no velocity
+        // yet, as after a loss); the rest are steady-state tracking.
+        match i {
+            0 => {}
+            1 => t_vo_lost = start.elapsed().as_secs_f64(),
+            _ => t_vo += start.elapsed().as_secs_f64(),
+        }
+        let start = wall_clock();
+        let found = segments::detect(l, &segments::DetectParams::default());
+        t_lsd += start.elapsed().as_secs_f64();
+        n_segments += found.len();
+        let start = wall_clock();
+        for s in &previous {
+            std::hint::black_box(segments::track(l, s, &segments::TrackParams::default()));
+        }
+        t_track += start.elapsed().as_secs_f64();
+        previous = found;
+    }
+    let n = frames.len() as f64;
+    let mut f = Figures::new(
+        "vision",
+        &[("stage", "stage, per stereo frame"), ("ms", "ms")],
+    );
+    f.about.insert(
+        "frame".into(),
+        json!(format!("{} x {} stereo", k.width, k.height)),
+    );
+    f.about
+        .insert("robot".into(), json!(loaded.robots[robot].spec.name));
+    for (stage, ms) in [
+        ("harris_selection", 1e3 * t_detect / n),
+        ("stereo_matching", 1e3 * t_stereo / n),
+        ("vo_step_tracking", 1e3 * t_vo / (n - 2.0)),
+        ("vo_step_without_velocity", 1e3 * t_vo_lost),
+        ("segment_detection", 1e3 * t_lsd / n),
+        ("segment_tracking", 1e3 * t_track / (n - 1.0)),
+    ] {
+        f.row(vec![json!(stage), json!(ms)]);
+    }
+    f.about.insert(
+        "segments_per_frame".into(),
+        json!(n_segments as f64 / frames.len() as f64),
+    );
+    Ok(f)
+}
+
+/// The local EKF's time per frame against the number of landmarks (synthetic, a fifth of
+/// them lines, every landmark observed once per frame).
+pub fn slam() -> Figures {
+    use hetsim_slam::ekf::LocalMap;
+    use hetsim_slam::idp::Sensor;
+    use hetsim_slam::lines::LinePrior;
+    use nalgebra::{Isometry3, Matrix3, Matrix6, Translation3, UnitQuaternion, Vector2};
+    let r = Matrix3::new(0.0, 0.0, 1.0, -1.0, 0.0, 0.0, 0.0, -1.0, 0.0);
+    let sensor = Sensor::new(
+        hetsim_vision::Camera {
+            alpha_u: 887.0,
+            alpha_v: 887.0,
+            u0: 511.5,
+            v0: 383.5,
+        },
+        &Isometry3::from_parts(
+            Translation3::new(0.0, 0.0, 1.4),
+            UnitQuaternion::from_matrix(&r),
+        ),
+    );
+    let mut f = Figures::new(
+        "slam",
+        &[
+            ("landmarks", "landmarks in the local map"),
+            ("points", "points"),
+            ("lines", "lines"),
+            ("state_size", "state size"),
+            (
+                "ms_per_frame",
+                "ms per frame (prediction + an update per landmark)",
+            ),
+            ("us_per_point_update", "us per point update"),
+            ("us_per_line_update", "us per line update"),
+        ],
+    );
+    for n in [10usize, 25, 50, 100] {
+        // A fifth of the landmarks are lines, about what the village's sub-maps hold.
+        let lines = n / 5;
+        let mut map = LocalMap::new();
+        for k in 0..n - lines {
+            let px = Vector2::new(40.0 + (k * 97 % 940) as f64, 40.0 + (k * 61 % 680) as f64);
+            map.add_point(&sensor, &px, 1.0, 0.1, 0.2, k as u64);
+        }
+        let segment = |k: usize| {
+            let a = Vector2::new(60.0 + (k * 131 % 800) as f64, 60.0 + (k * 89 % 560) as f64);
+            (a, a + Vector2::new(120.0, 40.0 + (k * 37 % 80) as f64))
+        };
+        for k in 0..lines {
+            let (a, b) = segment(k);
+            map.add_line(&sensor, &a, &b, 1.0, &LinePrior::seed(), (n + k) as u64);
+        }
+        let frames = 20;
+        let (mut points_s, mut lines_s) = (0.0, 0.0);
+        let start = wall_clock();
+        for fr in 0..frames {
+            map.predict(
+                &Isometry3::translation(0.05, 0.0, 0.0),
+                &Matrix6::from_diagonal_element(1e-6),
+            );
+            let t = wall_clock();
+            for k in 0..map.points.len() {
+                if let Some((pr, _)) = map.predict_point(&sensor, k, 1.0) {
+                    let z = pr.pixel + Vector2::new(0.1 * (fr % 3) as f64, -0.1);
+                    std::hint::black_box(map.update(&sensor, k, &z, 1.0, 9.21));
+                }
+            }
+            points_s += t.elapsed().as_secs_f64();
+            let t = wall_clock();
+            for j in 0..map.lines.len() {
+                let (a, b) = segment(j);
+                let shift = Vector2::new(0.0, 0.2 * (fr % 3) as f64);
+                std::hint::black_box(map.update_line(&sensor, j, &(a + shift), &b, 1.0, 9.21));
+            }
+            lines_s += t.elapsed().as_secs_f64();
+            map.symmetrize();
+        }
+        let ms = start.elapsed().as_secs_f64() * 1e3 / frames as f64;
+        let per = |total: f64, count: usize| total * 1e6 / (frames * count.max(1)) as f64;
+        f.row(vec![
+            json!(n),
+            json!(map.points.len()),
+            json!(map.lines.len()),
+            json!(map.state_len()),
+            json!(ms),
+            json!(per(points_s, map.points.len())),
+            json!(per(lines_s, map.lines.len())),
+        ]);
+    }
+    f
+}

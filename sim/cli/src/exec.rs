@@ -1,0 +1,174 @@
+//! Running one scenario and writing its results: `hetsim run` and `hetsim frames`.
+
+use anyhow::{Context, Result};
+use hetsim_engine::frames::FrameDump;
+use hetsim_engine::record::Recorder;
+use hetsim_render::RenderOptions;
+use hetsim_scene::{load_scenario, LoadOptions, Scenario};
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use std::io::IsTerminal;
+use std::path::{Path, PathBuf};
+
+/// Window and camera filter of a frame dump.
+pub type DumpSpec = (Option<(f64, f64)>, Option<Vec<String>>);
+
+/// What to do besides running.
+pub struct Job<'a> {
+    /// Results folder (default under `results/runs/`).
+    pub out: Option<&'a Path>,
+    /// MCAP recording.
+    pub record: Option<&'a Path>,
+    /// Render the cameras on this adapter choice.
+    pub render: Option<RenderOptions>,
+    /// Dump frames (window, cameras).
+    pub dump: Option<DumpSpec>,
+    /// SLAM stacks open loop.
+    pub open_loop: bool,
+}
+
+/// `hetsim frames`: renders and writes the frames of a time window.
+pub fn frames(
+    scenario: &Path,
+    (from, to): (f64, f64),
+    cameras: Option<String>,
+    seed: Option<u64>,
+    out: Option<PathBuf>,
+    render: RenderOptions,
+) -> Result<()> {
+    anyhow::ensure!(
+        from.is_finite() && to.is_finite() && from >= 0.0 && from <= to,
+        "--from {from} --to {to}: expected 0 <= from <= to seconds"
+    );
+    let dt = load_scenario(scenario, &LoadOptions::default())?
+        .clock
+        .dt_secs();
+    let loaded = load_scenario(
+        scenario,
+        &LoadOptions {
+            seed,
+            duration_secs: Some(to.max(dt)),
+        },
+    )?;
+    let list = cameras.map(|c| {
+        c.split(',')
+            .map(|s| s.trim().to_string())
+            .filter(|s| !s.is_empty())
+            .collect::<Vec<_>>()
+    });
+    let out = out.unwrap_or_else(|| {
+        PathBuf::from("results/runs").join(format!(
+            "{}-seed{}-frames-{from}-{to}",
+            loaded.file.name, loaded.seed
+        ))
+    });
+    execute(
+        &loaded,
+        &Job {
+            out: Some(&out),
+            record: None,
+            render: Some(render),
+            dump: Some((Some((from, to)), list)),
+            open_loop: false,
+        },
+    )
+}
+
+/// Runs a loaded scenario with the robot software its robots declare, evaluates it and
+/// writes its results (and frames, and recording). Prints `results: DIR` and `digest: HEX`.
+pub fn execute(loaded: &Scenario, job: &Job<'_>) -> Result<()> {
+    let bar = progress_bar(&loaded.file.name);
+    let start = crate::bench::wall_clock();
+    let mut recorder = job.record.map(Recorder::create).transpose()?;
+    let frames_only = job
+        .dump
+        .as_ref()
+        .is_some_and(|(window, cameras)| window.is_some() || cameras.is_some());
+    let staging = PathBuf::from(
+        job.out
+            .and_then(|o| o.parent())
+            .filter(|p| !p.as_os_str().is_empty())
+            .unwrap_or(Path::new("results/runs")),
+    )
+    .join(format!(".frames-{}", std::process::id()));
+    let mut dumper = job
+        .dump
+        .clone()
+        .map(|(window, cameras)| FrameDump::new(&staging, window, cameras));
+    let options = hetsim_engine::RunOptions {
+        recorder: recorder.as_mut(),
+        render: job.render.clone(),
+        dump: dumper.as_mut(),
+        frames_only,
+    };
+    let stacks = hetsim_stacks::build_stacks(loaded, job.open_loop);
+    let result = hetsim_engine::run(
+        loaded,
+        stacks,
+        |tick, total| {
+            bar.set_length(total);
+            bar.set_position(tick);
+        },
+        options,
+    );
+    bar.finish_and_clear();
+    let written = (|| {
+        let result = result?;
+        if let Some(r) = recorder {
+            let path = r.finish()?;
+            eprintln!("recorded: {}", path.display());
+        }
+        let metrics = hetsim_eval::Metrics::compute(loaded, &result, job.render.as_ref())?;
+        let wall = start.elapsed().as_secs_f64();
+        let timing = serde_json::json!({
+            "wall_secs": wall,
+            "sim_secs": result.sim_secs,
+            "realtime_factor": result.sim_secs / wall.max(1e-9),
+            "threads": rayon_threads(),
+            "frames_written": dumper.as_ref().map_or(0, |d| d.written()),
+        });
+        let files = hetsim_eval::write_run(
+            loaded,
+            result,
+            &metrics,
+            job.out,
+            timing,
+            dumper.is_some().then_some(staging.as_path()),
+        )
+        .context("writing results")?;
+        anyhow::Ok(files)
+    })();
+    let files = match written {
+        Ok(f) => f,
+        Err(e) => {
+            let _ = std::fs::remove_dir_all(&staging);
+            return Err(e);
+        }
+    };
+    println!("results: {}", files.dir.display());
+    println!("digest: {}", files.digest);
+    Ok(())
+}
+
+fn rayon_threads() -> usize {
+    std::env::var("RAYON_NUM_THREADS")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()))
+}
+
+/// A progress bar on a terminal's stderr; hidden when stderr is not a terminal.
+pub fn progress_bar(name: &str) -> ProgressBar {
+    if !std::io::stderr().is_terminal() {
+        return ProgressBar::hidden();
+    }
+    let bar = ProgressBar::with_draw_target(Some(0), ProgressDrawTarget::stderr());
+    bar.set_style(
+        ProgressStyle::with_template(
+            "{prefix} [{bar:40}] {percent}% sim  {elapsed} elapsed, {eta} left",
+        )
+        .expect("valid template")
+        .progress_chars("=> "),
+    );
+    bar.set_prefix(name.to_string());
+    bar
+}

@@ -1,0 +1,206 @@
+//! Experiments over many runs: localization from coverage databases, Monte Carlo sweeps of
+//! coverage planning, the coverage report, regression against the baselines.
+
+use crate::exec::{execute, progress_bar, Job};
+use anyhow::{Context, Result};
+use hetsim_eval::{regress, sweep};
+use hetsim_render::RenderOptions;
+use hetsim_scene::{load_scenario, LoadOptions};
+use std::path::{Path, PathBuf};
+
+fn default_jobs(jobs: Option<usize>) -> usize {
+    jobs.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()))
+}
+
+/// `hetsim report coverage`.
+pub fn report(what: &str, jobs: Option<usize>) -> Result<()> {
+    anyhow::ensure!(
+        what == "coverage",
+        "unknown report {what:?}: the only report is `coverage`"
+    );
+    let bar = progress_bar("report");
+    let path = hetsim_eval::report::coverage_report(
+        Path::new("."),
+        default_jobs(jobs),
+        &|done, total| {
+            bar.set_length(total as u64);
+            bar.set_position(done as u64);
+        },
+    )?;
+    bar.finish_and_clear();
+    println!("results: {}", path.display());
+    Ok(())
+}
+
+/// `hetsim regress`.
+pub fn regress(update: bool, scenarios: Vec<String>) -> Result<()> {
+    let scenarios = if scenarios.is_empty() {
+        regress::DEFAULT_SCENARIOS
+            .iter()
+            .map(|s| s.to_string())
+            .collect()
+    } else {
+        scenarios
+    };
+    let rows = regress::regress(Path::new("."), &scenarios, update)?;
+    println!("| scenario | metric | baseline | now | allowed | |");
+    println!("|---|---|---|---|---|---|");
+    for r in &rows {
+        let status = if update {
+            "updated"
+        } else if r.moved() {
+            "MOVED"
+        } else {
+            "ok"
+        };
+        println!(
+            "| {} | {} | {} | {} | {} | {status} |",
+            r.scenario, r.metric, r.baseline, r.now, r.allowed
+        );
+    }
+    let moved = rows.iter().filter(|r| r.moved()).count();
+    anyhow::ensure!(moved == 0, "{moved} metric(s) moved beyond their tolerance; if the change is intended, run `hetsim regress --update` and commit the baselines");
+    println!("regress: {} metrics within tolerance", rows.len());
+    Ok(())
+}
+
+/// `hetsim sweep` and `hetsim sweep merge`.
+pub fn sweep(
+    target: String,
+    more: Vec<PathBuf>,
+    jobs: Option<usize>,
+    out: Option<PathBuf>,
+    shard: Option<String>,
+) -> Result<()> {
+    let merging = target == "merge";
+    let (file, shards) = if merging {
+        let (f, rest) = more
+            .split_first()
+            .context("usage: hetsim sweep merge SWEEP.toml SHARD_DIR... --out DIR")?;
+        (f.clone(), rest.to_vec())
+    } else {
+        anyhow::ensure!(
+            more.is_empty(),
+            "unexpected arguments after the sweep file: {more:?}"
+        );
+        (PathBuf::from(&target), Vec::new())
+    };
+    let loaded = sweep::load_sweep(&file)?;
+    let out = out.unwrap_or_else(|| {
+        PathBuf::from("results/runs").join(format!("sweep-{}", loaded.file.name))
+    });
+    let summary = if merging {
+        anyhow::ensure!(!shards.is_empty(), "name the shard folders to merge");
+        sweep::merge(&loaded, &out, &shards)?
+    } else {
+        let shard = match shard {
+            None => (1, 1),
+            Some(s) => {
+                let parsed = s
+                    .split_once('/')
+                    .and_then(|(k, n)| Some((k.parse::<usize>().ok()?, n.parse::<usize>().ok()?)));
+                match parsed {
+                    Some((k, n)) if n >= 1 && (1..=n).contains(&k) => (k, n),
+                    _ => anyhow::bail!("--shard {s}: expected K/N with 1 <= K <= N, e.g. 2/4"),
+                }
+            }
+        };
+        let jobs = default_jobs(jobs);
+        let bar = progress_bar(&loaded.file.name);
+        let summary = sweep::run_sweep(&loaded, &out, jobs, shard, &|done, total| {
+            bar.set_length(total as u64);
+            bar.set_position(done as u64);
+        })?;
+        bar.finish_and_clear();
+        summary
+    };
+    println!(
+        "{}",
+        std::fs::read_to_string(out.join("summary.md")).unwrap_or_default()
+    );
+    println!("finished: {} of {} runs", summary.finished, summary.total);
+    println!("results: {}", out.display());
+    Ok(())
+}
+
+/// `hetsim localize`: mapping runs, cross-validation, particle filter paths.
+pub fn localize(
+    scenario: &Path,
+    seeds: u64,
+    paths: usize,
+    steps: usize,
+    out: Option<PathBuf>,
+    render: RenderOptions,
+) -> Result<()> {
+    use hetsim_eval::localize::{cross_validate, load_database, particle_filter_path};
+    anyhow::ensure!(
+        seeds >= 2,
+        "--seeds {seeds}: cross-validation needs at least 2 runs"
+    );
+    let base = load_scenario(scenario, &LoadOptions::default())?;
+    anyhow::ensure!(
+        base.robots
+            .iter()
+            .any(|r| matches!(r.spec.mission, hetsim_scene::MissionSpec::CoverageParent)),
+        "{}: no robot with mission coverage_parent; localization needs a coverage mission",
+        scenario.display()
+    );
+    let out = out.unwrap_or_else(|| {
+        PathBuf::from("results/runs").join(format!("localize-{}", base.file.name))
+    });
+    let mut databases = Vec::new();
+    let mut missions = Vec::new();
+    for seed in 1..=seeds {
+        let dir = out.join(format!("runs/seed-{seed}"));
+        if dir.join("manifest.json").is_file() {
+            eprintln!("seed {seed}: reusing {}", dir.display());
+        } else {
+            eprintln!("seed {seed}: running the mission");
+            let loaded = load_scenario(
+                scenario,
+                &LoadOptions {
+                    seed: Some(seed),
+                    duration_secs: None,
+                },
+            )?;
+            execute(
+                &loaded,
+                &Job {
+                    out: Some(&dir),
+                    record: None,
+                    render: Some(render.clone()),
+                    dump: None,
+                    open_loop: false,
+                },
+            )?;
+        }
+        let metrics: serde_json::Value = serde_json::from_slice(
+            &std::fs::read(dir.join("metrics.json"))
+                .with_context(|| format!("{}", dir.display()))?,
+        )?;
+        missions.push(metrics["team"].clone());
+        databases.push(load_database(&dir)?);
+    }
+    eprintln!("cross-validating {} databases", databases.len());
+    let cross = cross_validate(&databases);
+    let mut pf: Vec<hetsim_eval::localize::PathRun> = Vec::new();
+    for p in 0..paths {
+        eprintln!("particle filter path {}/{paths}", p + 1);
+        let db = &databases[p % databases.len()];
+        pf.extend(particle_filter_path(
+            &base,
+            db,
+            steps,
+            1000 + p as u64,
+            &render,
+        )?);
+    }
+    let summary = hetsim_eval::localize::summarize(&missions, &cross, &pf);
+    let json = serde_json::to_vec_pretty(&summary)?;
+    let md = hetsim_eval::localize::markdown(&summary);
+    hetsim_core::files::write_atomic(&out.join("localization.json"), &json)?;
+    hetsim_core::files::write_atomic(&out.join("localization.md"), md.as_bytes())?;
+    println!("{md}");
+    println!("results: {}", out.display());
+    Ok(())
+}

@@ -1,0 +1,85 @@
+//! Tests of the cameras: projection, distortion, panoramas, noise.
+
+use super::*;
+
+/// A synthetic render whose red channel is the column and green the row (both < 256).
+fn ramp(k: &Intrinsics) -> Frame {
+    let mut rgb = Vec::new();
+    for v in 0..k.height {
+        for u in 0..k.width {
+            rgb.extend([u as u8, v as u8, 255]);
+        }
+    }
+    Frame {
+        width: k.width,
+        height: k.height,
+        rgb,
+        depth_m: vec![1.0; (k.width * k.height) as usize],
+    }
+}
+
+#[test]
+fn radial_distortion_samples_where_the_model_says() {
+    let k = Intrinsics {
+        width: 120,
+        height: 100,
+        alpha_u: 90.0,
+        alpha_v: 90.0,
+        u0: 59.5,
+        v0: 49.5,
+    };
+    let (k1, k2) = (-0.2, 0.05);
+    let Model::Pinhole { render, .. } = pinhole(k, Some([k1, k2])) else {
+        unreachable!()
+    };
+    assert!(
+        render.width > k.width && render.height > k.height,
+        "barrel distortion needs a wider render"
+    );
+    assert!(
+        render.width < 256 && render.height < 256,
+        "the ramp encodes coordinates in a byte"
+    );
+    let (rgb, _) = distort(&ramp(&render), &k, &render, [k1, k2]);
+    assert_eq!(rgb.len(), (k.width * k.height * 3) as usize);
+    assert!(
+        rgb.chunks_exact(3).all(|p| p[2] == 255),
+        "every pixel has data: no black corners"
+    );
+    for &(u, v) in &[(0u32, 0u32), (119, 5), (60, 50), (10, 99), (100, 80)] {
+        // Forward model from the sampled (undistorted) point must give back the pixel.
+        let i = ((v * k.width + u) * 3) as usize;
+        let (su, sv) = (rgb[i] as f64, rgb[i + 1] as f64);
+        let (xu, yu) = (
+            (su - render.u0) / render.alpha_u,
+            (sv - render.v0) / render.alpha_v,
+        );
+        let r2 = xu * xu + yu * yu;
+        let s = 1.0 + k1 * r2 + k2 * r2 * r2;
+        let (ud, vd) = (k.alpha_u * xu * s + k.u0, k.alpha_v * yu * s + k.v0);
+        assert!(
+            (ud - u as f64).abs() < 1.0 && (vd - v as f64).abs() < 1.0,
+            "pixel ({u}, {v}) sampled ({su}, {sv}) -> ({ud:.2}, {vd:.2})"
+        );
+    }
+    // Barrel distortion (k1 < 0): the corner samples from beyond the image's own corner.
+    assert!(rgb[0] as f64 + 0.5 < render.u0 - k.u0 && rgb[1] as f64 + 0.5 < render.v0 - k.v0);
+}
+
+#[test]
+fn panorama_centre_column_looks_forward_and_the_top_row_up() {
+    let face = Intrinsics::from_hfov(64, 64, 90.0);
+    let lookup = panorama_lookup(&face, 360, 180, [-1.5, 1.5]);
+    // Centre column, middle row: straight ahead, face 0 at its centre.
+    let (f, u, v, scale) = lookup[90 * 360 + 180];
+    assert_eq!(f, 0);
+    assert!(
+        (u as f64 - 31.5).abs() < 1.0
+            && (v as f64 - 31.5).abs() < 1.0
+            && (scale - 1.0).abs() < 0.01
+    );
+    // Quarter of the way across: 90 deg to the left, face 1.
+    assert_eq!(lookup[90 * 360 + 90].0, 1);
+    // Top row: looking up, face 4.
+    assert_eq!(lookup[180].0, 4);
+}
