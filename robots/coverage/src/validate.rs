@@ -10,7 +10,16 @@ use crate::CoverageParams;
 /// vertex, in the parent's LOS_free, with no other robot in view, and each vertex is grabbed
 /// once; children never stand on the parent's vertex; and the imaged vertices are exactly
 /// V \ V_p minus the reported uncoverable and unreached ones. Returns the first violation.
-pub fn validate(map: &Map, params: &CoverageParams, plan: &Plan) -> Result<(), String> {
+pub fn validate(map: &Map, params: &CoverageParams, plan: &Plan) -> Result<(), Violation> {
+    check(map, params, plan).map_err(Violation)
+}
+
+/// The first invariant a plan breaks, with the timestep and the robots involved.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[error("{0}")]
+pub struct Violation(pub String);
+
+fn check(map: &Map, params: &CoverageParams, plan: &Plan) -> Result<(), String> {
     let vis = Visibility::compute(map, params);
     let mut prev = plan.start.clone();
     let mut grabbed = vec![false; map.len()];

@@ -23,6 +23,9 @@ use crate::idp::{self, Idp, Projection, Sensor};
 use crate::quat::{d_normalize, d_rot_dq, from_rotation_vector, left, right, rot};
 use nalgebra::{DMatrix, DVector, Isometry3, Matrix2, Matrix6, SMatrix, Vector2, Vector3, Vector4};
 
+/// Anchored Plücker lines in this map (its state holds them after the points).
+pub mod lines;
+
 /// The deletion rule for points and lines: searched at least `min_searches` times and found
 /// in fewer than half of them.
 pub(crate) fn unreliable(searched: u32, found: u32, min_searches: u32) -> bool {

@@ -12,20 +12,11 @@
 //! map as the world frame and Ressac starts above Dala; here each robot is given its start
 //! pose, and the events correct the drift after it).
 
+pub use crate::graph::relative_info;
 use crate::graph::{Edge, Graph, Prior};
 use nalgebra::{Isometry3, Matrix3, Matrix6, Vector3};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
-
-/// The information of a relative pose measured with deviation `sigma_m` on each position
-/// axis and `sigma_rad` on each rotation axis.
-pub fn relative_info(sigma_m: f64, sigma_rad: f64) -> Matrix6<f64> {
-    let (it, ir) = (
-        1.0 / (sigma_m * sigma_m).max(1e-12),
-        1.0 / (sigma_rad * sigma_rad).max(1e-12),
-    );
-    Matrix6::from_diagonal(&nalgebra::Vector6::new(it, it, it, ir, ir, ir))
-}
 
 /// An event link measured by the robot that owns the share.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]

@@ -264,6 +264,16 @@ pub fn compound(
     (a * b, j * cov_a * j.transpose() + cov_b)
 }
 
+/// The information of a relative pose measured with deviation `sigma_m` on each position
+/// axis and `sigma_rad` on each rotation axis.
+pub fn relative_info(sigma_m: f64, sigma_rad: f64) -> Matrix6<f64> {
+    let (it, ir) = (
+        1.0 / (sigma_m * sigma_m).max(1e-12),
+        1.0 / (sigma_rad * sigma_rad).max(1e-12),
+    );
+    Matrix6::from_diagonal(&nalgebra::Vector6::new(it, it, it, ir, ir, ir))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -294,7 +304,7 @@ mod tests {
             truth.push(truth[k - 1] * step);
         }
         let (st, sr) = (0.02, 0.01);
-        let info = crate::global::relative_info(st, sr);
+        let info = relative_info(st, sr);
         let mut g = Graph::default();
         g.add_node(truth[0]);
         for k in 1..20 {

@@ -24,10 +24,10 @@
 
 pub mod apl;
 pub mod ekf;
+pub use ekf::lines;
 pub mod global;
 pub mod graph;
 pub mod idp;
-pub mod lines;
 pub mod quat;
 pub mod report;
 pub mod stack;

@@ -4,7 +4,7 @@
 use anyhow::{Context, Result};
 use hetsim_engine::RunOptions;
 use hetsim_render::{CameraView, Intrinsics, RenderOptions, Renderer};
-use hetsim_scene::{load_scenario, LoadOptions, Scenario, Sensor};
+use hetsim_scene::{load_scenario, LoadOptions, Scenario};
 use serde_json::{json, Map, Value};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -284,41 +284,24 @@ pub fn render(scenarios: &[PathBuf], options: &RenderOptions) -> Result<Figures>
     Ok(f)
 }
 
-/// The first stereo bench of a scenario's robots: (robot index, intrinsics, baseline, mount).
-fn stereo_bench(scenario: &Scenario) -> Option<(usize, Intrinsics, f64, hetsim_msgs::Pose)> {
-    scenario.robots.iter().enumerate().find_map(|(i, r)| {
-        r.model.sensors.iter().find_map(|s| match s {
-            Sensor::StereoCamera {
-                width_px,
-                height_px,
-                hfov_deg,
-                intrinsics,
-                baseline_m,
-                mount,
-                ..
-            } => Some((
-                i,
-                hetsim_render::intrinsics_of(*width_px, *height_px, *hfov_deg, intrinsics.as_ref()),
-                *baseline_m,
-                hetsim_msgs::pose_from_xyz_rpy(mount.xyz_m, mount.rpy_deg.map(f64::to_radians)),
-            )),
-            _ => None,
-        })
-    })
-}
-
 /// Milliseconds per stereo frame for Harris, stereo matching, a VO step and line segments,
 /// on rendered frames of the scenario's first stereo robot driving 6 cm per frame from its
 /// start.
 pub fn vision(scenario: &Path) -> Result<Figures> {
     use hetsim_vision::{harris, segments, stereo, vo::StereoVo, Camera, Gray};
     let loaded = load_scenario(scenario, &LoadOptions::default())?;
-    let (robot, k, baseline, mount) = stereo_bench(&loaded).with_context(|| {
-        format!(
-            "{}: no robot with a stereo_camera to measure",
-            scenario.display()
-        )
-    })?;
+    let (robot, stereo) = loaded
+        .robots
+        .iter()
+        .enumerate()
+        .find_map(|(i, r)| Some((i, hetsim_stacks::stereo_bench(r)?)))
+        .with_context(|| {
+            format!(
+                "{}: no robot with a stereo_camera to measure",
+                scenario.display()
+            )
+        })?;
+    let (k, baseline, mount) = (stereo.intrinsics, stereo.baseline_m, stereo.body_from_mount);
     let mut renderer = Renderer::new(&loaded.world, &RenderOptions::default())?;
     let bench = stereo::Bench {
         camera: Camera {

@@ -288,7 +288,14 @@ impl Recorder {
             path: self.tmp.clone(),
             source,
         })?;
-        drop(self.writer);
+        // Flushed and on disk before the rename makes it look complete.
+        let file = self
+            .writer
+            .into_inner()
+            .into_inner()
+            .map_err(|e| hetsim_core::files::FileError::at(&self.tmp)(e.into_error()))?;
+        file.sync_all()
+            .map_err(hetsim_core::files::FileError::at(&self.tmp))?;
         std::fs::rename(&self.tmp, &self.path)
             .map_err(hetsim_core::files::FileError::at(&self.path))?;
         Ok(self.path)

@@ -20,8 +20,9 @@ pub mod sweep;
 pub mod team;
 pub mod trajectory;
 
-pub use metrics::{Estimate, Metrics, RobotMetrics};
+pub use metrics::{Metrics, RobotMetrics};
 pub use results::{write_run, RunFiles};
+pub use trajectory::Estimate;
 
 use std::path::PathBuf;
 

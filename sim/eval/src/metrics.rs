@@ -3,11 +3,10 @@
 use crate::coverage::CoverageMetrics;
 use crate::slam::SlamMetrics;
 use crate::team::{TeamMetrics, TeamOutcome};
-use crate::trajectory::Accuracy;
+use crate::trajectory::{estimates, Accuracy};
 use crate::EvalError;
 use hetsim_engine::comms::CommsStats;
 use hetsim_engine::RunOutput;
-use hetsim_msgs::{ArtifactData, Pose};
 use hetsim_render::RenderOptions;
 use hetsim_scene::Scenario;
 use serde::Serialize;
@@ -76,37 +75,6 @@ pub struct Metrics {
     pub slam: Option<SlamMetrics>,
 }
 
-/// A trajectory a robot stack estimated (a trajectory artifact with at least two poses).
-#[derive(Clone, Debug, PartialEq)]
-pub struct Estimate {
-    /// What estimated it, e.g. `vo`.
-    pub kind: String,
-    /// The robot.
-    pub robot: String,
-    /// `(stamp_ns, world_from_body)`.
-    pub poses: Vec<(u64, Pose)>,
-}
-
-/// Every estimated trajectory of the run, in robot order and then in the order each stack
-/// published them; trajectories of fewer than two poses are left out.
-pub fn estimates(output: &RunOutput) -> Vec<Estimate> {
-    let mut out = Vec::new();
-    for (robot, artifacts) in &output.artifacts {
-        for a in artifacts {
-            if let ArtifactData::Trajectory(poses) = &a.data {
-                if poses.len() >= 2 {
-                    out.push(Estimate {
-                        kind: a.name.clone(),
-                        robot: robot.clone(),
-                        poses: poses.clone(),
-                    });
-                }
-            }
-        }
-    }
-    out
-}
-
 impl Metrics {
     /// Evaluates a run. With `render`, a finished coverage mission's database is also tried
     /// by the particle filter on a new path (rendered on that adapter).
@@ -139,7 +107,7 @@ impl Metrics {
         };
         let mut team = None;
         if let Some(outcome) = TeamOutcome::of(output) {
-            let mut m = TeamMetrics::compute(scenario, &outcome, output, &robots);
+            let mut m = TeamMetrics::compute(scenario, &outcome, output);
             // The children then localize from the images: a particle filter on a new path.
             if let Some(r) = render {
                 let db = crate::localize::database_of(&outcome.report, &output.truth);

@@ -4,7 +4,8 @@
 //! renamed into place only when every file is complete: an interrupted run never leaves a
 //! directory that looks like finished results.
 
-use crate::metrics::{estimates, Estimate, Metrics};
+use crate::metrics::Metrics;
+use crate::trajectory::{estimates, Estimate};
 use crate::EvalError;
 use hetsim_core::files::{write_dir_atomic, FileError};
 use hetsim_engine::{tum_line, RunOutput};

@@ -1,7 +1,7 @@
 //! The SLAM stacks' reports against ground truth: the NEES of the robot pose, what each event
 //! did to the robot's pose error, and the team's joint accuracy.
 
-use crate::metrics::Estimate;
+use crate::trajectory::Estimate;
 use crate::trajectory::{evaluate_joint, Accuracy, Paired};
 use hetsim_engine::RunOutput;
 use hetsim_msgs::Pose;

@@ -274,9 +274,7 @@ impl Sweep {
 
     /// The run's scenario, loaded and validated.
     pub fn scenario(&self, run: &SweepRun) -> Result<hetsim_scene::Scenario, SweepError> {
-        let text = self
-            .scenario_text(run)
-            .map_err(|e| self.run_error(run, e))?;
+        let text = self.scenario_text(run)?;
         load_scenario_text(
             &self.base,
             text,
@@ -289,24 +287,30 @@ impl Sweep {
     }
 
     /// The base scenario with a run's axis values written in.
-    pub fn scenario_text(&self, run: &SweepRun) -> Result<String, String> {
-        let mut table: toml::Table = toml::from_str(&self.base_text).map_err(|e| e.to_string())?;
+    pub fn scenario_text(&self, run: &SweepRun) -> Result<String, SweepError> {
+        let fail = |message: String| self.run_error(run, message);
+        let mut table: toml::Table =
+            toml::from_str(&self.base_text).map_err(|e| fail(e.to_string()))?;
         for (key, value) in self.axes().iter().zip(&run.values) {
             let mut segments: Vec<&str> = key.split('.').collect();
-            let last = segments.pop().ok_or("empty axis name")?;
+            let last = segments
+                .pop()
+                .ok_or_else(|| fail("empty axis name".into()))?;
             let mut at = &mut table;
             for seg in segments {
                 at = at
                     .entry(seg.to_string())
                     .or_insert_with(|| toml::Value::Table(toml::Table::new()))
                     .as_table_mut()
-                    .ok_or(format!(
-                        "axis {key}: {seg} is not a table in the base scenario"
-                    ))?;
+                    .ok_or_else(|| {
+                        fail(format!(
+                            "axis {key}: {seg} is not a table in the base scenario"
+                        ))
+                    })?;
             }
             at.insert(last.to_string(), value.clone());
         }
-        toml::to_string(&table).map_err(|e| e.to_string())
+        toml::to_string(&table).map_err(|e| fail(e.to_string()))
     }
 
     /// Runs one run: the coverage plan of the run's scenario.

@@ -1,7 +1,6 @@
 //! A coverage mission run in lockstep (seed 002, Section V.B): its figures against ground
 //! truth, and its image database and plots as files.
 
-use crate::metrics::RobotMetrics;
 use crate::scene::{camera_of, direction_rad, truth_at};
 use crate::stats::MeanStd;
 use hetsim_coverage::{TeamReport, TEAM_ARTIFACT};
@@ -142,12 +141,7 @@ fn robot_in_view(
 impl TeamMetrics {
     /// The figures of a mission from its parent's report, ground truth and the robots'
     /// metrics.
-    pub fn compute(
-        scenario: &Scenario,
-        outcome: &TeamOutcome,
-        output: &RunOutput,
-        robots: &[RobotMetrics],
-    ) -> Self {
+    pub fn compute(scenario: &Scenario, outcome: &TeamOutcome, output: &RunOutput) -> Self {
         // Line of sight through the static world only (robots are ignored), so a fresh
         // physics world of the scenario answers as the run's would.
         let physics = Physics::for_scenario(scenario, &hetsim_core::Streams::new(scenario.seed));
@@ -217,7 +211,7 @@ impl TeamMetrics {
             heading_error_deg: MeanStd::population(&head),
             compass_heading_error_deg: MeanStd::population(&compass),
             estimate_error_m: MeanStd::population(&est),
-            collisions: robots.iter().map(|m| m.collisions).sum(),
+            collisions: output.robots.iter().map(|m| m.collisions).sum(),
             tracking_losses: r.tracking_losses,
             resent_orders: r.resent_orders,
             images_with_robot_in_view: in_view,
@@ -241,15 +235,7 @@ pub fn files(
     };
     let grid = &g.grid;
     let r = &outcome.report;
-    let png = |img: image::RgbImage| {
-        let mut bytes = Vec::new();
-        img.write_to(
-            &mut std::io::Cursor::new(&mut bytes),
-            image::ImageFormat::Png,
-        )
-        .expect("PNG encodes in memory");
-        bytes
-    };
+    let png = |img: image::RgbImage| crate::plot::png(&img);
     let mut out = Vec::new();
     let mut entries = Vec::new();
     for d in &r.database {

@@ -6,7 +6,8 @@
 //! root-mean-square position error. RPE: over every pair of estimates 1 s apart, the
 //! root-mean-square error of the relative translation (as `evo_rpe --delta 1 --delta_unit s`).
 
-use hetsim_msgs::Pose;
+use hetsim_engine::RunOutput;
+use hetsim_msgs::{ArtifactData, Pose};
 use nalgebra::Vector3;
 use serde::Serialize;
 use std::collections::BTreeMap;
@@ -87,6 +88,37 @@ pub fn evaluate_joint(parts: &[Paired<'_>]) -> Accuracy {
         rpe_1s_m,
         final_error_m,
     }
+}
+
+/// A trajectory a robot stack estimated (a trajectory artifact with at least two poses).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Estimate {
+    /// What estimated it, e.g. `vo`.
+    pub kind: String,
+    /// The robot.
+    pub robot: String,
+    /// `(stamp_ns, world_from_body)`.
+    pub poses: Vec<(u64, Pose)>,
+}
+
+/// Every estimated trajectory of the run, in robot order and then in the order each stack
+/// published them; trajectories of fewer than two poses are left out.
+pub fn estimates(output: &RunOutput) -> Vec<Estimate> {
+    let mut out = Vec::new();
+    for (robot, artifacts) in &output.artifacts {
+        for a in artifacts {
+            if let ArtifactData::Trajectory(poses) = &a.data {
+                if poses.len() >= 2 {
+                    out.push(Estimate {
+                        kind: a.name.clone(),
+                        robot: robot.clone(),
+                        poses: poses.clone(),
+                    });
+                }
+            }
+        }
+    }
+    out
 }
 
 #[cfg(test)]

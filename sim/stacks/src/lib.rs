@@ -18,6 +18,49 @@ use hetsim_pilot::{
 };
 use hetsim_scene::{DriveKind, MissionSpec, ResolvedRobot, Scenario, Sensor, SteeringKind};
 
+/// A robot's (first) stereo bench, as the robot file declares it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct StereoBench {
+    /// The sensor's name (its cameras are `<name>/left` and `<name>/right`).
+    pub name: String,
+    /// The left camera's pinhole intrinsics (the right one's are the same).
+    pub intrinsics: hetsim_render::Intrinsics,
+    /// Baseline, metres (the right camera sits at -baseline along the left's y).
+    pub baseline_m: f64,
+    /// The left camera's mount in the body frame (body axis convention, x along the view).
+    pub body_from_mount: hetsim_msgs::Pose,
+}
+
+/// The robot's first stereo bench, if it has one.
+pub fn stereo_bench(robot: &ResolvedRobot) -> Option<StereoBench> {
+    robot.model.sensors.iter().find_map(|s| match s {
+        Sensor::StereoCamera {
+            name,
+            width_px,
+            height_px,
+            hfov_deg,
+            intrinsics,
+            baseline_m,
+            mount,
+            ..
+        } => Some(StereoBench {
+            name: name.clone(),
+            intrinsics: hetsim_render::intrinsics_of(
+                *width_px,
+                *height_px,
+                *hfov_deg,
+                intrinsics.as_ref(),
+            ),
+            baseline_m: *baseline_m,
+            body_from_mount: hetsim_msgs::pose_from_xyz_rpy(
+                mount.xyz_m,
+                mount.rpy_deg.map(f64::to_radians),
+            ),
+        }),
+        _ => None,
+    })
+}
+
 /// One stack per robot of the scenario, in scenario order; the SLAM stacks open loop (no
 /// events, no radio) when `open_loop`. Each stack's random seed comes from its own named
 /// stream (`<robot>/vo/ransac`).
@@ -44,34 +87,20 @@ pub fn build_stack(
     open_loop: bool,
 ) -> Box<dyn RobotStack> {
     let pilot = build_pilot(scenario, robot);
-    let stereo = robot.model.sensors.iter().find_map(|s| match s {
-        Sensor::StereoCamera {
-            name,
-            width_px,
-            height_px,
-            hfov_deg,
-            intrinsics,
-            baseline_m,
-            mount,
-            ..
-        } => Some((
-            name,
-            hetsim_render::intrinsics_of(*width_px, *height_px, *hfov_deg, intrinsics.as_ref()),
-            *baseline_m,
-            mount,
-        )),
-        _ => None,
-    });
+    let stereo = stereo_bench(robot);
     match stereo {
-        Some((name, k, baseline, mount)) => {
+        Some(StereoBench {
+            name,
+            intrinsics: k,
+            baseline_m: baseline,
+            body_from_mount,
+        }) => {
             let camera = hetsim_vision::Camera {
                 alpha_u: k.alpha_u,
                 alpha_v: k.alpha_v,
                 u0: k.u0,
                 v0: k.v0,
             };
-            let body_from_mount =
-                hetsim_msgs::pose_from_xyz_rpy(mount.xyz_m, mount.rpy_deg.map(f64::to_radians));
             let body_from_camera = nalgebra::Isometry3::from_parts(
                 body_from_mount.translation,
                 body_from_mount.rotation * hetsim_render::mount_to_optical(),
@@ -94,7 +123,7 @@ pub fn build_stack(
             Box::new(hetsim_slam::stack::SlamStack::new(
                 pilot,
                 &robot.spec.name,
-                name,
+                &name,
                 hetsim_vision::stereo::Bench {
                     camera,
                     baseline_m: baseline,
