@@ -45,6 +45,12 @@ fn check(name: &str, args: &[&str], golden: PerAdapter) {
     }
 }
 
+// The lab and indoor-team digests moved once, in the commit that made truth an oracle: the
+// children (ctbot, no oracle) no longer receive `<child>/truth` messages, which the digest
+// covered; every stack's commands and radio messages stayed the same bytes (the manifest's
+// `stacks` digests, and tests/tests/oracle.rs). Before: lab 83596783 / d09f1e30, indoor-team
+// cfb9f93a / e89fe768 (lavapipe / llvmpipe-GL).
+
 #[test]
 fn golden_lab_mission() {
     check(
@@ -54,12 +60,12 @@ fn golden_lab_mission() {
             (
                 LAVAPIPE.0,
                 LAVAPIPE.1,
-                "83596783a5e40cf7085ab44020bda1136a11dff94f0ed6c6b5a5d3b9ffc60d09",
+                "8dc54d1f9b937ee28858145a2055a7917210912ead831c877582c4118e83745a",
             ),
             (
                 LLVMPIPE_GL.0,
                 LLVMPIPE_GL.1,
-                "d09f1e30f2f5014e5fcd07e7b68956db952fcfb9b65b932da4483dd3e19509b4",
+                "a53034e3b83cb57c63cf8fead188ae930c2a18c2634edc6a8c978d69211e9d31",
             ),
         ],
     );
@@ -74,12 +80,12 @@ fn golden_indoor_team_mission() {
             (
                 LAVAPIPE.0,
                 LAVAPIPE.1,
-                "cfb9f93af3cc7bcc04eea4c3b5a11f2c7037bfd7fe7032588142990380e75225",
+                "eb213b02550b61c4a5ed644885c39e15d9ab1c00c421544457db620ded614741",
             ),
             (
                 LLVMPIPE_GL.0,
                 LLVMPIPE_GL.1,
-                "e89fe7688af1499cdbf31b3f024100f2e35b0f0f77134f79c885ebb01571aa52",
+                "8d302ca62b50f5c9514bec5abd69c5110b207027e0e085f93ce8690691658773",
             ),
         ],
     );

@@ -261,7 +261,7 @@ fn rendezvous_fires_only_with_line_of_sight() {
 fn wheel_odometry_overestimates_distance_by_the_slip() {
     let s = scenario(
         "width_m = 20.0\nheight_m = 4.0\nspacing_m = 0.5",
-        "[[robots]]\nname = \"c\"\nmodel = \"ctbot\"\nstart = { x = -9.25, y = 0.25 }\nmission = { kind = \"waypoints\", points = [[8.0, 0.25]] }\noverrides = { \"sensors.encoders.scale_sigma\" = 0.0, \"sensors.encoders.noise_per_m\" = 0.0, \"body.wheels.speed_noise\" = 0.0 }\n",
+        "[[robots]]\nname = \"c\"\nmodel = \"ctbot\"\nstart = { x = -9.25, y = 0.25 }\nmission = { kind = \"waypoints\", points = [[8.0, 0.25]] }\noverrides = { \"sensors.encoders.scale_sigma\" = 0.0, \"sensors.encoders.noise_per_m\" = 0.0, \"body.wheels.speed_noise\" = 0.0, \"sensors.truth.enabled\" = true }\n",
     );
     let result = hetsim_tests::run_scenario(&s, RunOptions::default());
     let truth = &result.truth[0].1;

@@ -239,7 +239,8 @@ impl Recorder {
         let frame = format!("{robot}/base_link");
         let topic = format!("/{topic}");
         match msg {
-            SensorMsg::TruthPose(p) => self.truth(robot, t, &p.pose),
+            // The engine records every robot's truth itself, oracle or not.
+            SensorMsg::TruthPose(_) => {}
             SensorMsg::Compass(m) => self.write(&topic, "hetsim.Compass", t, &json!({"timestamp": stamp(t), "frame_id": frame, "heading_rad": m.heading_rad})),
             SensorMsg::Gps(m) => {
                 let (lat0, lon0, alt0) = GEO_ORIGIN;

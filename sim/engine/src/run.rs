@@ -91,7 +91,6 @@ impl Post<'_> {
 /// Per-robot topic names, made once.
 struct Topics {
     cmd: Vec<String>,
-    truth: Vec<String>,
     radio: Vec<String>,
     /// `robot/sensor` -> `body_from_sensor`.
     mounts: BTreeMap<String, Pose>,
@@ -102,7 +101,6 @@ impl Topics {
         let each = |suffix: &str| names.iter().map(|r| format!("{r}/{suffix}")).collect();
         Self {
             cmd: each("cmd"),
-            truth: each("truth"),
             radio: each("radio"),
             mounts: scenario
                 .robots
@@ -164,21 +162,46 @@ fn run_on_worker(
     let mut truth: Vec<Vec<(u64, Pose)>> = vec![Vec::new(); n];
     let mut keyframes_seen = vec![0usize; n];
     let topics = Topics::of(scenario, &names);
-    let deliver_truth =
-        |post: &mut Post, truth: &mut Vec<Vec<(u64, Pose)>>, physics: &Physics, stamp_ns: u64| {
+    // Each robot's enabled oracle, if its robot file declares one: (topic, period in ticks).
+    let oracles: Vec<Option<(String, u64)>> = scenario
+        .robots
+        .iter()
+        .map(|r| {
+            r.model
+                .sensors
+                .iter()
+                .find(|s| s.is_enabled_oracle())
+                .map(|s| {
+                    (
+                        format!("{}/{}", r.spec.name, s.name()),
+                        clock.period_ticks(s.rate_hz()).expect("validated rate"),
+                    )
+                })
+        })
+        .collect();
+    // Ground truth is kept (and recorded) for every robot at the truth rate, for evaluation;
+    // a robot receives it only through its oracle.
+    let sample_truth =
+        |post: &mut Post, truth: &mut Vec<Vec<(u64, Pose)>>, physics: &Physics, tick: u64| {
+            let stamp_ns = clock.time_ns(tick);
             for i in 0..n {
                 let pose = physics.pose(i);
-                post.deliver(
-                    i,
-                    &topics.truth[i],
-                    SensorMsg::TruthPose(PoseStamped { stamp_ns, pose }),
-                    None,
-                );
-                truth[i].push((stamp_ns, pose));
+                if let Some((topic, period)) = &oracles[i] {
+                    if tick % period == 0 {
+                        let msg = SensorMsg::TruthPose(PoseStamped { stamp_ns, pose });
+                        post.deliver(i, topic, msg, None);
+                    }
+                }
+                if tick % truth_period == 0 {
+                    if let Some(r) = post.recorder.as_deref_mut() {
+                        r.truth(&names[i], stamp_ns, &pose);
+                    }
+                    truth[i].push((stamp_ns, pose));
+                }
             }
         };
-    // The initial pose, delivered before the first tick.
-    deliver_truth(&mut post, &mut truth, &physics, 0);
+    // The initial pose, before the first tick.
+    sample_truth(&mut post, &mut truth, &physics, 0);
     let report_every = (total / 100).max(1);
     // A mission that ends before the scenario's duration ends the run two seconds later.
     let mut end = total;
@@ -235,9 +258,7 @@ fn run_on_worker(
         physics.step();
         // 4. sensors due at the end of this tick
         let after = tick + 1;
-        if after % truth_period == 0 {
-            deliver_truth(&mut post, &mut truth, &physics, clock.time_ns(after));
-        }
+        sample_truth(&mut post, &mut truth, &physics, after);
         for sample in sensors.sample(&physics, tick) {
             let mount = topics.mounts.get(&sample.topic);
             post.deliver(sample.robot, &sample.topic, sample.msg, mount);

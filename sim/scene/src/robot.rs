@@ -342,6 +342,21 @@ pub enum Sensor {
         /// Relative attitude noise, degrees (each axis).
         sigma_deg: f64,
     },
+    /// **Oracle**: the robot's exact ground-truth pose (`world_from_body`), delivered at
+    /// `rate_hz` as `SensorMsg::TruthPose` on `<robot>/<name>`. Only robot software that is not
+    /// an estimator may rely on it (a waypoint pilot; the seed's parent, which "has an
+    /// accurate localization"); the manifest lists every oracle of a run. A robot without an
+    /// enabled oracle never receives its true pose.
+    OraclePose {
+        /// Unique on the robot.
+        name: String,
+        /// Poses per second.
+        rate_hz: f64,
+        /// Mounting pose (the pose given is the body's; kept for the frame tree).
+        mount: Mount,
+        /// Whether the robot receives it; a scenario may switch it by override (`"sensors.<name>.enabled"`).
+        enabled: bool,
+    },
     /// A planar laser scanner.
     Laser {
         /// Unique on the robot.
@@ -380,6 +395,11 @@ pub enum Sensor {
 }
 
 impl Sensor {
+    /// Whether this is an enabled oracle: a sensor that gives the robot ground truth.
+    pub fn is_enabled_oracle(&self) -> bool {
+        matches!(self, Sensor::OraclePose { enabled: true, .. })
+    }
+
     /// The sensor's kind as written in robot files (`camera`, `compass`, ...).
     pub fn kind(&self) -> &'static str {
         match self {
@@ -394,6 +414,7 @@ impl Sensor {
             Sensor::Imu { .. } => "imu",
             Sensor::Rendezvous { .. } => "rendezvous",
             Sensor::ImageMatch { .. } => "image_match",
+            Sensor::OraclePose { .. } => "oracle_pose",
         }
     }
 
@@ -410,7 +431,8 @@ impl Sensor {
             | Sensor::WheelOdometry { name, .. }
             | Sensor::Imu { name, .. }
             | Sensor::Rendezvous { name, .. }
-            | Sensor::ImageMatch { name, .. } => name,
+            | Sensor::ImageMatch { name, .. }
+            | Sensor::OraclePose { name, .. } => name,
         }
     }
 
@@ -427,7 +449,8 @@ impl Sensor {
             | Sensor::WheelOdometry { rate_hz, .. }
             | Sensor::Imu { rate_hz, .. }
             | Sensor::Rendezvous { rate_hz, .. }
-            | Sensor::ImageMatch { rate_hz, .. } => *rate_hz,
+            | Sensor::ImageMatch { rate_hz, .. }
+            | Sensor::OraclePose { rate_hz, .. } => *rate_hz,
         }
     }
 
@@ -444,7 +467,8 @@ impl Sensor {
             | Sensor::WheelOdometry { mount, .. }
             | Sensor::Imu { mount, .. }
             | Sensor::Rendezvous { mount, .. }
-            | Sensor::ImageMatch { mount, .. } => mount,
+            | Sensor::ImageMatch { mount, .. }
+            | Sensor::OraclePose { mount, .. } => mount,
         }
     }
 }

@@ -83,15 +83,20 @@ fn normal(rng: &mut SimRng, sigma: f64) -> f64 {
 }
 
 impl SensorSuite {
-    /// The sensors of a scenario's robots (cameras excluded), with their random streams.
+    /// The sensors of a scenario's robots (cameras and oracles excluded), with their random
+    /// streams.
     pub fn new(scenario: &Scenario, streams: &Streams) -> Self {
         let clock = scenario.clock;
         let mut sensors = Vec::new();
         for (i, r) in scenario.robots.iter().enumerate() {
             for spec in &r.model.sensors {
+                // Cameras are rendered by the engine, and the engine delivers the oracles.
                 if matches!(
                     spec,
-                    Sensor::Camera { .. } | Sensor::StereoCamera { .. } | Sensor::OmniCamera { .. }
+                    Sensor::Camera { .. }
+                        | Sensor::StereoCamera { .. }
+                        | Sensor::OmniCamera { .. }
+                        | Sensor::OraclePose { .. }
                 ) {
                     continue;
                 }

@@ -324,6 +324,7 @@ impl RobotModel {
                     c.positive(&at("max_range_m"), *max_range_m)?;
                     c.range(&at("range_sigma_m"), *range_sigma_m, 0.0, 1.0)?;
                 }
+                Sensor::OraclePose { .. } => {}
                 Sensor::ChildTracker {
                     range_m,
                     error_mean_m,

@@ -1,0 +1,94 @@
+//! Truth reaches a robot only through an oracle its robot file declares, and the coverage
+//! children do not depend on it: with every truth message withheld from them they compute the
+//! same bytes.
+
+use hetsim_tests::{hetsim, printed_digest, repo};
+use serde_json::Value;
+use std::path::Path;
+
+fn json(path: &Path) -> Value {
+    serde_json::from_slice(&std::fs::read(path).unwrap()).unwrap()
+}
+
+/// Runs the lab mission's first two minutes, with the children's oracle switched on or left as
+/// their robot file declares it (off); returns the results folder and the digest.
+fn lab(dir: &Path, children_oracle: bool) -> (std::path::PathBuf, String) {
+    let mut text = std::fs::read_to_string(repo().join("scenarios/lab.toml")).unwrap();
+    text = text.replacen(
+        "schema_version = 1\n",
+        &format!(
+            "schema_version = 1\nmodels_dir = \"{}\"\n",
+            repo().join("robots/models").display()
+        ),
+        1,
+    );
+    if children_oracle {
+        text = text.replace(
+            "mission = { kind = \"coverage_child\" }",
+            "mission = { kind = \"coverage_child\" }\noverrides = { \"sensors.truth.enabled\" = true }",
+        );
+    }
+    let name = if children_oracle { "with" } else { "without" };
+    let scenario = dir.join(format!("lab-{name}.toml"));
+    std::fs::write(&scenario, text).unwrap();
+    let out = dir.join(name);
+    let o = hetsim(
+        &[
+            "run",
+            scenario.to_str().unwrap(),
+            "--duration",
+            "120",
+            "--out",
+            out.to_str().unwrap(),
+        ],
+        &[],
+    );
+    let digest = printed_digest(&o);
+    (out, digest)
+}
+
+#[test]
+fn coverage_children_compute_the_same_bytes_without_truth() {
+    let dir = tempfile::tempdir().unwrap();
+    let (without, d_without) = lab(dir.path(), false);
+    let (with, d_with) = lab(dir.path(), true);
+    let (m_without, m_with) = (
+        json(&without.join("manifest.json")),
+        json(&with.join("manifest.json")),
+    );
+    // The manifest lists every oracle: the parent's, and the children's only when on.
+    let oracle_robots = |m: &Value| -> Vec<String> {
+        m["oracles"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .filter(|o| o["kind"] == "oracle_pose")
+            .map(|o| o["robot"].as_str().unwrap().to_string())
+            .collect()
+    };
+    assert_eq!(oracle_robots(&m_without), ["parent"]);
+    assert_eq!(
+        oracle_robots(&m_with),
+        ["parent", "child1", "child2", "child3"]
+    );
+    // The truth really was delivered in one run and withheld in the other.
+    let truth_count = |out: &Path, robot: &str| {
+        json(&out.join("metrics.json"))["messages"][format!("{robot}/truth")]
+            .as_u64()
+            .unwrap_or(0)
+    };
+    for child in ["child1", "child2", "child3"] {
+        assert_eq!(truth_count(&without, child), 0, "{child} got truth");
+        assert!(truth_count(&with, child) > 100, "{child} got no truth");
+    }
+    assert_ne!(d_without, d_with, "the delivered truth is in the digest");
+    // What every stack computed (commands and radio messages) is the same bytes.
+    let stacks = |m: &Value| m["stacks"].as_array().unwrap().clone();
+    assert_eq!(stacks(&m_without).len(), 4);
+    assert_eq!(stacks(&m_without), stacks(&m_with));
+    // And the mission got somewhere in those two minutes: images were taken.
+    let imaged = json(&without.join("metrics.json"))["team"]["imaged"]
+        .as_u64()
+        .unwrap();
+    assert!(imaged > 0, "no vertex imaged in two minutes");
+}
