@@ -270,3 +270,34 @@ fn a_killed_sweep_leaves_only_whole_rows_and_resumes_to_the_same_files() {
     assert!(whole.status.success());
     assert_eq!(outputs(&killed), outputs(&fresh));
 }
+
+#[test]
+fn a_short_or_mangled_row_file_is_an_error_naming_the_file_not_a_panic() {
+    let tmp = tempfile::tempdir().unwrap();
+    let sweep = load_sweep(&sweep_file(tmp.path())).unwrap();
+    let out = tmp.path().join("o");
+    run_sweep(&sweep, &out, 2, (1, 1), &|_, _| {}).unwrap();
+    let row = out.join("rows/000003.csv");
+    let original = std::fs::read_to_string(&row).unwrap();
+    // Cut after the seed: the metrics are missing.
+    let short: Vec<&str> = original.trim_end().split(',').take(4).collect();
+    std::fs::write(&row, short.join(",") + "\n").unwrap();
+    let e = hetsim_eval::sweep::summarize(&sweep, &out)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("000003.csv") && e.contains("4 fields") && e.contains("14 columns"),
+        "{e}"
+    );
+    // A metric that is not a number names its column.
+    let mut fields: Vec<String> = original.trim_end().split(',').map(String::from).collect();
+    fields[5] = "many".into();
+    std::fs::write(&row, fields.join(",") + "\n").unwrap();
+    let e = hetsim_eval::sweep::summarize(&sweep, &out)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("000003.csv") && e.contains("many") && e.contains("parent_vertices"),
+        "{e}"
+    );
+}

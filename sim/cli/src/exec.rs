@@ -140,7 +140,11 @@ pub fn execute(loaded: &Scenario, job: &Job<'_>) -> Result<()> {
     let files = match written {
         Ok(f) => f,
         Err(e) => {
+            // Nothing half-written stays behind: staged frames, an unfinished recording.
             let _ = std::fs::remove_dir_all(&staging);
+            if let Some(path) = job.record {
+                let _ = std::fs::remove_file(Recorder::partial_path(path));
+            }
             return Err(e);
         }
     };

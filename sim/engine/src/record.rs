@@ -134,7 +134,7 @@ impl Recorder {
     /// Starts a recording that will be at `path` once [`Recorder::finish`] succeeds.
     pub fn create(path: &Path) -> Result<Self, RecordError> {
         use hetsim_core::files::FileError;
-        let tmp = path.with_extension("mcap.partial");
+        let tmp = Self::partial_path(path);
         if let Some(dir) = path.parent().filter(|p| !p.as_os_str().is_empty()) {
             std::fs::create_dir_all(dir).map_err(FileError::at(dir))?;
         }
@@ -276,6 +276,12 @@ impl Recorder {
             }
             SensorMsg::Comms(m) => self.write(&format!("/{robot}/radio"), "hetsim.Comms", t, &json!({"timestamp": stamp(t), "from": m.from, "to": robot, "topic": m.topic, "sent": stamp(m.sent_ns), "bytes": m.payload.len()})),
         }
+    }
+
+    /// Where the recording for `path` is written until [`Recorder::finish`] moves it into place
+    /// (a run that fails removes it).
+    pub fn partial_path(path: &Path) -> PathBuf {
+        path.with_extension("mcap.partial")
     }
 
     /// Messages written per topic.

@@ -57,8 +57,7 @@ pub fn write_run(
     timing: serde_json::Value,
     frames: Option<&Path>,
 ) -> Result<RunFiles, EvalError> {
-    let files = files(scenario, &result, metrics);
-    let mut files = files;
+    let mut files = files(scenario, &result, metrics);
     for (name, bytes) in &files {
         result.digest.record(&format!("file/{name}"), bytes);
     }
