@@ -27,7 +27,10 @@ PACKAGES="mesa-vulkan-drivers libvulkan1 libegl1 libegl-mesa0 libgles2"
 if command -v apt-get >/dev/null 2>&1 && [ "$(id -u)" = 0 ]; then
     echo "setup: installing Mesa's software rasterizers ($PACKAGES)" >&2
     apt-get update -qq || true
-    DEBIAN_FRONTEND=noninteractive apt-get install -y -qq $PACKAGES >/dev/null
+    if ! DEBIAN_FRONTEND=noninteractive apt-get install -y -qq $PACKAGES >/dev/null; then
+        echo "setup: apt-get install $PACKAGES failed (see apt's message above)" >&2
+        exit 1
+    fi
     if have_vulkan && have_egl; then
         exit 0
     fi

@@ -1,7 +1,8 @@
 //! The crate boundaries ARCHITECTURE.md states, checked from `cargo metadata` and the sources.
 //!
 //! * robot software (`robots/*`) never depends on the simulator (`sim/*`);
-//! * the engine depends on no robot crate but `hetsim-msgs`;
+//! * the engine depends on no robot crate but `hetsim-msgs`, and its sources name no robot
+//!   model;
 //! * `hetsim-msgs` depends on nothing of ours;
 //! * each heavy dependency lives in one crate (rapier in physics, wgpu in render, clap and
 //!   indicatif and anyhow in the binary);
@@ -102,6 +103,31 @@ fn the_engine_knows_no_robot_software_but_the_messages() {
     assert!(!deps
         .iter()
         .any(|d| d == "hetsim-eval" || d == "hetsim-stacks"));
+}
+
+#[test]
+fn the_engine_names_no_robot_model() {
+    // What a robot is comes from its robot file, never from its model's name.
+    let models: Vec<String> = std::fs::read_dir(repo().join("robots/models"))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|x| x == "toml"))
+        .map(|p| p.file_stem().unwrap().to_string_lossy().to_string())
+        .collect();
+    assert!(models.len() >= 4, "{models:?}");
+    for f in sources(&repo().join("sim/engine/src")) {
+        if f.components().any(|c| c.as_os_str() == "tests") {
+            continue;
+        }
+        let text = std::fs::read_to_string(&f).unwrap();
+        for m in &models {
+            assert!(
+                !text.contains(&format!("\"{m}\"")),
+                "{} names the robot model {m:?}",
+                f.display()
+            );
+        }
+    }
 }
 
 #[test]

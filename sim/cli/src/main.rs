@@ -149,7 +149,9 @@ enum Cmd {
         /// Scenarios (default: indoor-grid-0, -20, -40).
         scenarios: Vec<String>,
     },
-    /// Measure sim seconds per wall second (physics and ground truth only).
+    /// Measure sim seconds per wall second (physics and ground truth only), or with one of
+    /// the mode flags another figure.
+    #[command(group(clap::ArgGroup::new("mode").multiple(false)))]
     Bench {
         /// Scenarios to measure.
         #[arg(default_values = ["scenarios/village.toml", "scenarios/indoor-grid-20.toml"])]
@@ -158,24 +160,24 @@ enum Cmd {
         #[arg(long, default_value_t = 120.0)]
         sim_secs: f64,
         /// Instead: time coverage planning of each scenario (median of 5).
-        #[arg(long)]
+        #[arg(long, group = "mode")]
         coverage: bool,
         /// Instead: time one laser scan, and a tick with and without the non-visual sensors.
-        #[arg(long)]
+        #[arg(long, group = "mode")]
         sensors: bool,
         /// Instead: frames per second with readback (1024x768 mono, 1024x768 stereo pairs,
         /// 120x88) on the adapter HETSIM_BACKEND / HETSIM_ADAPTER choose.
-        #[arg(long)]
+        #[arg(long, group = "mode")]
         render: bool,
         /// Instead: milliseconds per stereo frame for Harris, stereo matching, a VO step and
         /// line segments, on rendered frames of the first scenario's first stereo robot
         /// (default: the village's rover) moving 6 cm per frame.
-        #[arg(long)]
+        #[arg(long, group = "mode")]
         vision: bool,
         /// Instead: the local EKF's prediction and point and line updates per frame against
         /// the number of mapped landmarks (synthetic, a fifth of them lines, every landmark
         /// observed once per frame).
-        #[arg(long)]
+        #[arg(long, group = "mode")]
         slam: bool,
         /// Print the figures as one JSON object instead of a Markdown table.
         #[arg(long)]

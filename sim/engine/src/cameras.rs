@@ -99,7 +99,7 @@ fn robot_parts(model: &hetsim_scene::RobotModel) -> Vec<RobotPart> {
                 hat: false,
             },
         ],
-        _ if model.name == "ctbot" => vec![
+        _ if model.body.hat => vec![
             RobotPart {
                 centre: [0.0, 0.0, h],
                 half_extents: [l, w, h],

@@ -64,6 +64,10 @@ pub struct Body {
     /// Rotor/autopilot parameters (helicopter).
     #[serde(default)]
     pub helicopter: Option<Helicopter>,
+    /// Wears the orange hat that a parent's child tracker follows (seed 002's c't-Bots): the
+    /// renderer draws it on top of the body.
+    #[serde(default)]
+    pub hat: bool,
 }
 
 /// Wheel-ground parameters.
