@@ -76,8 +76,9 @@ pub fn frames(
 /// Runs a loaded scenario with the robot software its robots declare, evaluates it and
 /// writes its results (and frames, and recording). Prints `results: DIR` and `digest: HEX`.
 pub fn execute(loaded: &Scenario, job: &Job<'_>) -> Result<()> {
-    let bar = progress_bar(&loaded.file.name);
+    let bar = run_progress_bar(&loaded.file.name);
     let start = crate::bench::wall_clock();
+    let clock = loaded.clock;
     let mut recorder = job.record.map(Recorder::create).transpose()?;
     let frames_only = job
         .dump
@@ -107,6 +108,13 @@ pub fn execute(loaded: &Scenario, job: &Job<'_>) -> Result<()> {
         |tick, total| {
             bar.set_length(total);
             bar.set_position(tick);
+            let sim = clock.time_secs(tick);
+            let wall = start.elapsed().as_secs_f64().max(1e-9);
+            bar.set_message(format!(
+                "{sim:.1} / {:.1} s sim, {:.2}x real time",
+                clock.time_secs(total),
+                sim / wall
+            ));
         },
         options,
     );
@@ -158,6 +166,22 @@ fn rayon_threads() -> usize {
         .ok()
         .and_then(|v| v.parse().ok())
         .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()))
+}
+
+/// A run's progress on a terminal's stderr: sim time, real-time factor, time left; hidden
+/// when stderr is not a terminal (piped, CI).
+fn run_progress_bar(name: &str) -> ProgressBar {
+    if !std::io::stderr().is_terminal() {
+        return ProgressBar::hidden();
+    }
+    let bar = ProgressBar::with_draw_target(Some(0), ProgressDrawTarget::stderr());
+    bar.set_style(
+        ProgressStyle::with_template("{prefix} [{bar:30}] {msg}, {eta} left")
+            .expect("valid template")
+            .progress_chars("=> "),
+    );
+    bar.set_prefix(name.to_string());
+    bar
 }
 
 /// A progress bar on a terminal's stderr; hidden when stderr is not a terminal.

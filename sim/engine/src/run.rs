@@ -16,7 +16,8 @@ use serde::Serialize;
 use std::collections::BTreeMap;
 
 /// Runs a scenario to its duration with one robot stack per robot (scenario order).
-/// `progress(tick, total)` is called every 1 % or so. With a recorder, every command, message
+/// `progress(tick, total)` is called every sim second or every 1 % of the run, whichever
+/// comes more often. With a recorder, every command, message
 /// and ground-truth pose also goes to its MCAP file.
 ///
 /// The loop itself runs on a rayon worker thread, so the per-tick fan-out to the stacks is a
@@ -202,7 +203,8 @@ fn run_on_worker(
         };
     // The initial pose, before the first tick.
     sample_truth(&mut post, &mut truth, &physics, 0);
-    let report_every = (total / 100).max(1);
+    // Progress every sim second or every 1 % of the run, whichever comes more often.
+    let report_every = clock.ticks_in(1.0).min(total / 100).max(1);
     // A mission that ends before the scenario's duration ends the run two seconds later.
     let mut end = total;
     let linger = clock.ticks_in(2.0);
