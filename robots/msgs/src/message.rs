@@ -284,8 +284,9 @@ pub struct Outgoing {
 /// A message delivered to a robot stack.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub enum SensorMsg {
-    /// Ground-truth pose of the robot itself (the "accurate localization" of the seed's parent,
-    /// and the stand-in for estimation until the SLAM and coverage stacks take over).
+    /// **Oracle**: the robot's exact ground-truth pose, delivered only by an `oracle_pose`
+    /// sensor its robot file declares and enables (the manifest lists them). For waypoint
+    /// pilots and the seed's parent ("accurate localization"); estimators must not read it.
     TruthPose(PoseStamped),
     /// Compass.
     Compass(CompassReading),

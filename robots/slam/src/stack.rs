@@ -368,7 +368,9 @@ impl SlamStack {
         };
         let stamp = left.stamp_ns;
         if self.global.is_none() {
-            // The first pair: the first sub-map's origin is the robot's pose.
+            // The first pair: the first sub-map's origin is the robot's pose, taken from the
+            // oracle the robot's pilot declares. KNOWN BREACH of "no estimator reads an
+            // oracle", kept until the cooperative-SLAM issue starts each robot in its own frame.
             self.global = Some(Global::new(&self.robot, truth, stamp));
             self.open_origins.push(truth);
             self.vo_pose = Some(truth);

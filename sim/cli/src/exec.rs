@@ -171,31 +171,26 @@ fn rayon_threads() -> usize {
 /// A run's progress on a terminal's stderr: sim time, real-time factor, time left; hidden
 /// when stderr is not a terminal (piped, CI).
 fn run_progress_bar(name: &str) -> ProgressBar {
-    if !std::io::stderr().is_terminal() {
-        return ProgressBar::hidden();
-    }
-    let bar = ProgressBar::with_draw_target(Some(0), ProgressDrawTarget::stderr());
-    bar.set_style(
-        ProgressStyle::with_template("{prefix} [{bar:30}] {msg}, {eta} left")
-            .expect("valid template")
-            .progress_chars("=> "),
-    );
-    bar.set_prefix(name.to_string());
-    bar
+    bar_with(name, "{prefix} [{bar:30}] {msg}, {eta} left")
 }
 
 /// A progress bar on a terminal's stderr; hidden when stderr is not a terminal.
 pub fn progress_bar(name: &str) -> ProgressBar {
+    bar_with(
+        name,
+        "{prefix} [{bar:40}] {percent}% sim  {elapsed} elapsed, {eta} left",
+    )
+}
+
+fn bar_with(name: &str, template: &str) -> ProgressBar {
     if !std::io::stderr().is_terminal() {
         return ProgressBar::hidden();
     }
     let bar = ProgressBar::with_draw_target(Some(0), ProgressDrawTarget::stderr());
     bar.set_style(
-        ProgressStyle::with_template(
-            "{prefix} [{bar:40}] {percent}% sim  {elapsed} elapsed, {eta} left",
-        )
-        .expect("valid template")
-        .progress_chars("=> "),
+        ProgressStyle::with_template(template)
+            .expect("valid template")
+            .progress_chars("=> "),
     );
     bar.set_prefix(name.to_string());
     bar

@@ -186,14 +186,17 @@ fn run_on_worker(
         |post: &mut Post, truth: &mut Vec<Vec<(u64, Pose)>>, physics: &Physics, tick: u64| {
             let stamp_ns = clock.time_ns(tick);
             for i in 0..n {
-                let pose = physics.pose(i);
-                if let Some((topic, period)) = &oracles[i] {
-                    if tick % period == 0 {
-                        let msg = SensorMsg::TruthPose(PoseStamped { stamp_ns, pose });
-                        post.deliver(i, topic, msg, None);
-                    }
+                let oracle = oracles[i].as_ref().filter(|(_, period)| tick % period == 0);
+                let kept = tick % truth_period == 0;
+                if oracle.is_none() && !kept {
+                    continue;
                 }
-                if tick % truth_period == 0 {
+                let pose = physics.pose(i);
+                if let Some((topic, _)) = oracle {
+                    let msg = SensorMsg::TruthPose(PoseStamped { stamp_ns, pose });
+                    post.deliver(i, topic, msg, None);
+                }
+                if kept {
                     if let Some(r) = post.recorder.as_deref_mut() {
                         r.truth(&names[i], stamp_ns, &pose);
                     }
