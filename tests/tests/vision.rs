@@ -34,11 +34,11 @@ const CAM: Camera = Camera {
 /// Left and right views of a bench whose left camera mount is `mount` (body convention).
 fn bench_views(mount: &Pose, baseline: f64) -> [CameraView; 2] {
     let right = mount * pose_from_xyz_rpy([0.0, -baseline, 0.0], [0.0; 3]);
-    [mount, &right].map(|m| CameraView::from_mount(K, m, [0.05, 3000.0]))
+    [mount, &right].map(|m| CameraView::from_mount(K, m, [0.05, 3000.0]).with_depth())
 }
 
 fn gray(f: &hetsim_render::Frame) -> Gray {
-    Gray::from_rgb(f.width as usize, f.height as usize, &f.rgb)
+    Gray::from_rgb(f.width as usize, f.height as usize, &f.rgb())
 }
 
 /// The rover's bench at the entry of the north-west village, looking into it.
@@ -81,7 +81,7 @@ fn stereo_depth_matches_the_depth_buffer() {
             (-1..=1)
                 .flat_map(|dy| (-1..=1).map(move |dx| (x + dx, y + dy)))
                 .map(|(xx, yy)| {
-                    frames[0].depth_m[yy as usize * K.width as usize + xx as usize] as f64
+                    frames[0].depth()[yy as usize * K.width as usize + xx as usize] as f64
                 })
                 .filter(|t| *t > 0.0)
                 .map(|t| (p.disparity - CAM.alpha_u * 0.35 / t).abs())
@@ -117,7 +117,7 @@ fn harris_points_repeat_under_small_camera_motion() {
     let b_from_a = optical(&b).inverse() * optical(&a);
     let (mut visible, mut repeated) = (0, 0);
     for c in ca.iter().take(300) {
-        let z = frames[0].depth_m[c.y * K.width as usize + c.x] as f64;
+        let z = frames[0].depth()[c.y * K.width as usize + c.x] as f64;
         if z <= 0.0 {
             continue;
         }
@@ -145,9 +145,28 @@ fn harris_points_repeat_under_small_camera_motion() {
     );
 }
 
-/// Runs stereo VO over the bench views of `mounts`; returns the frames tracked, the position
-/// error at the end (m) and the rotation error (deg).
-fn vo_over(s: &Scenario, mounts: &[Pose], baseline: f64) -> (usize, f64, f64) {
+/// What stereo VO made of a rendered sequence.
+struct VoRun {
+    /// Frames with a motion estimate.
+    tracked: usize,
+    /// Position error at the end, metres.
+    drift: f64,
+    /// Rotation error at the end, degrees.
+    rotation: f64,
+    /// Per tracked frame: estimated over true translation length.
+    ratios: Vec<f64>,
+}
+
+impl VoRun {
+    fn median_ratio(&self) -> f64 {
+        let mut r = self.ratios.clone();
+        r.sort_by(f64::total_cmp);
+        r[r.len() / 2]
+    }
+}
+
+/// Runs stereo VO over the bench views of `mounts`.
+fn vo_over(s: &Scenario, mounts: &[Pose], baseline: f64) -> VoRun {
     let mut r = Renderer::new(&s.world, &RenderOptions::default()).unwrap();
     let mut vo = StereoVo::new(Bench {
         camera: CAM,
@@ -155,20 +174,37 @@ fn vo_over(s: &Scenario, mounts: &[Pose], baseline: f64) -> (usize, f64, f64) {
     });
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(1);
     let mut estimate = optical(&mounts[0]);
-    let mut tracked = 0;
-    for m in mounts {
+    let (mut tracked, mut ratios) = (0, Vec::new());
+    for (k, m) in mounts.iter().enumerate() {
         let f = r.render(&bench_views(m, baseline));
         if let Some(motion) = vo.process(&gray(&f[0]), &gray(&f[1]), &mut rng) {
             estimate *= motion.current_from_previous.inverse();
             tracked += 1;
+            if k > 0 {
+                let step = optical(m).inverse() * optical(&mounts[k - 1]);
+                let (est, truth) = (
+                    motion.current_from_previous.translation.vector.norm(),
+                    step.translation.vector.norm(),
+                );
+                ratios.push(est / truth);
+            }
         }
     }
     let truth = optical(mounts.last().unwrap());
-    (
+    let run = VoRun {
         tracked,
-        (estimate.translation.vector - truth.translation.vector).norm(),
-        estimate.rotation.angle_to(&truth.rotation).to_degrees(),
-    )
+        drift: (estimate.translation.vector - truth.translation.vector).norm(),
+        rotation: estimate.rotation.angle_to(&truth.rotation).to_degrees(),
+        ratios,
+    };
+    println!(
+        "VO: {} frames tracked, drift {:.3} m, rotation {:.2} deg, median estimated/true translation {:.4}",
+        run.tracked,
+        run.drift,
+        run.rotation,
+        run.median_ratio()
+    );
+    run
 }
 
 #[test]
@@ -179,7 +215,12 @@ fn visual_odometry_drift_on_a_rendered_rover_sequence() {
     let mounts: Vec<Pose> = (0..=steps)
         .map(|k| rover_mount(&s, 0.06 * k as f64, 0.002 * k as f64))
         .collect();
-    let (tracked, drift, rotation) = vo_over(&s, &mounts, 0.35);
+    let VoRun {
+        tracked,
+        drift,
+        rotation,
+        ..
+    } = vo_over(&s, &mounts, 0.35);
     assert_eq!(tracked, steps, "every frame tracked");
     let travelled = 0.06 * steps as f64;
     // Stated bound: under 5 % of the distance travelled (5 m per 100 m); measured 3.7 % when
@@ -209,7 +250,12 @@ fn visual_odometry_drift_on_a_rendered_helicopter_sequence() {
             )
         })
         .collect();
-    let (tracked, drift, rotation) = vo_over(&s, &mounts, 0.9);
+    let VoRun {
+        tracked,
+        drift,
+        rotation,
+        ..
+    } = vo_over(&s, &mounts, 0.9);
     assert_eq!(tracked, steps, "every frame tracked");
     let travelled = 0.6 * steps as f64;
     // Stated bound: under 3 % of the distance travelled (3 m per 100 m); measured 1.0 % when
@@ -287,7 +333,7 @@ fn segments_on_buildings(
         if x < 0 || y < 0 || x >= K.width as i64 || y >= K.height as i64 {
             return false;
         }
-        let z = frame.depth_m[y as usize * K.width as usize + x as usize] as f64;
+        let z = frame.depth()[y as usize * K.width as usize + x as usize] as f64;
         let w = w2c * Point3::from(CAM.back_project(x as f64, y as f64, z));
         s.world.solids.iter().any(|b| {
             let (sn, cs) = b.yaw_rad.sin_cos();

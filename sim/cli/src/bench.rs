@@ -255,7 +255,7 @@ pub fn render(scenarios: &[PathBuf], options: &RenderOptions) -> Result<Figures>
             (Intrinsics::from_hfov(1024, 768, 60.0), true),
             (Intrinsics::from_hfov(120, 88, 80.0), false),
         ] {
-            let frames = if k.width > 200 { 40 } else { 300 };
+            let frames = if k.width > 200 { 20 } else { 200 };
             let views = |i: usize| {
                 let yaw = r.yaw_deg.to_radians() + 0.01 * i as f64;
                 let mount =
@@ -267,12 +267,18 @@ pub fn render(scenarios: &[PathBuf], options: &RenderOptions) -> Result<Figures>
                 }
                 v
             };
-            renderer.render(&views(0));
-            let start = wall_clock();
-            for i in 0..frames {
-                std::hint::black_box(renderer.render(&views(i)));
+            // Warm up (targets, shader compilation), then render for at least three seconds
+            // and `frames` frames, as the wgpu reference does.
+            for i in 0..5 {
+                renderer.render(&views(i));
             }
-            rates.push(frames as f64 / start.elapsed().as_secs_f64());
+            let start = wall_clock();
+            let mut done = 0;
+            while done < frames || start.elapsed().as_secs_f64() < 3.0 {
+                std::hint::black_box(renderer.render(&views(done)));
+                done += 1;
+            }
+            rates.push(done as f64 / start.elapsed().as_secs_f64());
         }
         f.row(vec![
             json!(loaded.file.name),
@@ -327,8 +333,8 @@ pub fn vision(scenario: &Path) -> Result<Figures> {
             .collect();
         let f = renderer.render(&views);
         (
-            Gray::from_rgb(w, h, &f[0].rgb),
-            Gray::from_rgb(w, h, &f[1].rgb),
+            Gray::from_rgb(w, h, &f[0].rgb()),
+            Gray::from_rgb(w, h, &f[1].rgb()),
         )
     };
     let frames: Vec<(Gray, Gray)> = (0..11)

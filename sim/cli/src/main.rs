@@ -216,7 +216,11 @@ fn real_main() -> Result<()> {
                     duration_secs: duration,
                 },
             )?;
-            let render = (!no_render).then_some(hetsim_render::RenderOptions { backend, adapter });
+            let render = (!no_render).then_some(hetsim_render::RenderOptions {
+                backend,
+                adapter,
+                anisotropy: None,
+            });
             exec::execute(
                 &loaded,
                 &exec::Job {
@@ -243,7 +247,11 @@ fn real_main() -> Result<()> {
             cameras,
             seed,
             out,
-            hetsim_render::RenderOptions { backend, adapter },
+            hetsim_render::RenderOptions {
+                backend,
+                adapter,
+                anisotropy: None,
+            },
         )?,
         Cmd::Localize {
             scenario,
@@ -259,7 +267,11 @@ fn real_main() -> Result<()> {
             paths,
             steps,
             out,
-            hetsim_render::RenderOptions { backend, adapter },
+            hetsim_render::RenderOptions {
+                backend,
+                adapter,
+                anisotropy: None,
+            },
         )?,
         Cmd::Validate { files } => {
             anyhow::ensure!(

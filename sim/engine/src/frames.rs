@@ -135,18 +135,20 @@ impl FrameDump {
         let path = dir.join("data").join(&name);
         img.save_with_format(&path, image::ImageFormat::Png)
             .map_err(encode(&path))?;
-        let mm: Vec<u16> = shot
-            .depth_m
-            .iter()
-            .map(|d| (*d as f64 * 1000.0).round().clamp(0.0, 65535.0) as u16)
-            .collect();
-        let values = mm.len();
-        let depth = image::ImageBuffer::<image::Luma<u16>, Vec<u16>>::from_raw(width, height, mm)
-            .ok_or_else(|| size("depth", values))?;
-        let path = dir.join("depth").join(&name);
-        depth
-            .save_with_format(&path, image::ImageFormat::Png)
-            .map_err(encode(&path))?;
+        if let Some(depth_m) = &shot.depth_m {
+            let mm: Vec<u16> = depth_m
+                .iter()
+                .map(|d| (*d as f64 * 1000.0).round().clamp(0.0, 65535.0) as u16)
+                .collect();
+            let values = mm.len();
+            let depth =
+                image::ImageBuffer::<image::Luma<u16>, Vec<u16>>::from_raw(width, height, mm)
+                    .ok_or_else(|| size("depth", values))?;
+            let path = dir.join("depth").join(&name);
+            depth
+                .save_with_format(&path, image::ImageFormat::Png)
+                .map_err(encode(&path))?;
+        }
         self.csv
             .get_mut(&shot.topic)
             .expect("created above")

@@ -142,7 +142,7 @@ fn run_on_worker(
         .collect();
     let mut sensors = SensorSuite::new(scenario, &streams);
     let mut cameras = match &render {
-        Some(o) => Cameras::new(scenario, &streams, o)?,
+        Some(o) => Cameras::new(scenario, &streams, o, dump.is_some())?,
         None => None,
     };
     let mut comms = Comms::new(scenario.file.comms.clone(), clock, names.clone(), streams);

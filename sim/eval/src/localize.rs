@@ -262,7 +262,7 @@ pub fn particle_filter_path(
         let view = CameraView::from_mount(k, &(body * mount), [0.01, 100.0]);
         let frame = renderer.render(&[view]).remove(0);
         let rgb: Vec<u8> = frame
-            .rgb
+            .rgb()
             .iter()
             .map(|p| {
                 (*p as f64 + noise * gauss(&mut rng))

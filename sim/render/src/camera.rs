@@ -107,6 +107,9 @@ pub struct CameraView {
     pub near_far_m: [f64; 2],
     /// A robot (index into the last `set_robots`) not to draw: the camera's own.
     pub hide_robot: Option<usize>,
+    /// Render and read back linear depth too (frame dumps, tests, depth cameras); without
+    /// it only colour is written and read.
+    pub depth: bool,
 }
 
 impl CameraView {
@@ -125,7 +128,14 @@ impl CameraView {
             ),
             near_far_m,
             hide_robot: None,
+            depth: false,
         }
+    }
+
+    /// The same view, with depth rendered and read back.
+    pub fn with_depth(mut self) -> Self {
+        self.depth = true;
+        self
     }
 
     /// The matrix taking world points to clip space.
@@ -167,6 +177,7 @@ mod tests {
             ),
             near_far_m: [0.05, 100.0],
             hide_robot: None,
+            depth: false,
         };
         let m = view.view_proj();
         for p in [

@@ -1,20 +1,21 @@
 //! Tests of the cameras: projection, distortion, panoramas, noise.
 
 use super::*;
+use hetsim_render::Frame;
 
 /// A synthetic render whose red channel is the column and green the row (both < 256).
 fn ramp(k: &Intrinsics) -> Frame {
-    let mut rgb = Vec::new();
+    let mut rgba = Vec::new();
     for v in 0..k.height {
         for u in 0..k.width {
-            rgb.extend([u as u8, v as u8, 255]);
+            rgba.extend([u as u8, v as u8, 255, 255]);
         }
     }
     Frame {
         width: k.width,
         height: k.height,
-        rgb,
-        depth_m: vec![1.0; (k.width * k.height) as usize],
+        rgba,
+        depth_m: Some(vec![1.0; (k.width * k.height) as usize]),
     }
 }
 
