@@ -47,8 +47,12 @@ fn outside(m: &Matrix4<f64>, lo: [f32; 3], hi: [f32; 3]) -> bool {
 }
 
 /// Distance from the eye beyond which a terrain chunk is drawn at each coarser level of
-/// detail, metres: a 16 m grid 400 m away is as fine on screen as the 4 m grid 100 m away.
+/// detail, for a focal length of [`LOD_FOCAL_PX`]: a 16 m grid 400 m away is as fine on
+/// screen as the 4 m grid 100 m away. Scaled with the view's focal length, so that the
+/// decimation error stays the same in pixels.
 const LOD_FROM_M: [f64; 3] = [100.0, 200.0, 400.0];
+/// The focal length the distances are for: 1024 px over 60°.
+const LOD_FOCAL_PX: f64 = 887.0;
 
 /// The terrain chunks a view can see, nearest first (ties by index, so the order is fixed),
 /// with the level of detail for each.
@@ -71,8 +75,12 @@ fn visible_chunks(chunks: &[Chunk], view: &CameraView) -> Vec<(usize, usize)> {
         })
         .collect();
     seen.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+    let scale = view.intrinsics.alpha_u.max(view.intrinsics.alpha_v) / LOD_FOCAL_PX;
     seen.into_iter()
-        .map(|(d, i)| (i, LOD_FROM_M.iter().filter(|&&from| d >= from).count()))
+        .map(|(d, i)| {
+            let lod = LOD_FROM_M.iter().filter(|&&from| d >= from * scale).count();
+            (i, lod)
+        })
         .collect()
 }
 

@@ -109,7 +109,9 @@ impl Mesh {
     /// diagonal as parry's heightfield, so render and physics agree), in square chunks of
     /// [`CHUNK_CELLS`] cells for culling. Texture coordinates span [0, 1] over `extent_m`.
     pub fn push_terrain(&mut self, t: &Terrain, extent_m: f64) -> Vec<Chunk> {
-        let base = self.vertices.len() as u32;
+        // The grid's vertices; each chunk and level copies those it uses, so that a draw
+        // touches a compact range of vertices (a software rasterizer shades the whole range).
+        let mut grid = Vec::with_capacity(t.nx * t.ny);
         let h = |i: usize, j: usize| t.heights[j.min(t.ny - 1) * t.nx + i.min(t.nx - 1)];
         for j in 0..t.ny {
             for i in 0..t.nx {
@@ -118,7 +120,7 @@ impl Mesh {
                 let dzdx = (h(i + 1, j) - h(i.saturating_sub(1), j)) / (2.0 * t.cell_m);
                 let dzdy = (h(i, j + 1) - h(i, j.saturating_sub(1))) / (2.0 * t.cell_m);
                 let n = Vector3::new(-dzdx, -dzdy, 1.0).normalize();
-                self.vertices.push(Vertex {
+                grid.push(Vertex {
                     position: [x as f32, y as f32, h(i, j) as f32],
                     normal: [n.x as f32, n.y as f32, n.z as f32],
                     uv: [
@@ -140,7 +142,7 @@ impl Mesh {
                 let (mut lo, mut hi) = ([f32::MAX; 3], [f32::MIN; 3]);
                 for j in cj..=j1 {
                     for i in ci..=i1 {
-                        let p = self.vertices[base as usize + j * t.nx + i].position;
+                        let p = grid[j * t.nx + i].position;
                         for k in 0..3 {
                             lo[k] = lo[k].min(p[k]);
                             hi[k] = hi[k].max(p[k]);
@@ -149,7 +151,7 @@ impl Mesh {
                 }
                 let lods = std::array::from_fn(|level| {
                     let start = self.indices.len() as u32;
-                    self.push_terrain_lod(t, base, [ci, cj], [i1, j1], 1 << level);
+                    self.push_terrain_lod(t, &grid, [ci, cj], [i1, j1], 1 << level);
                     start..self.indices.len() as u32
                 });
                 lo[2] -= SKIRT_M as f32;
@@ -169,12 +171,11 @@ impl Mesh {
     fn push_terrain_lod(
         &mut self,
         t: &Terrain,
-        base: u32,
+        grid: &[Vertex],
         [i0, j0]: [usize; 2],
         [i1, j1]: [usize; 2],
         step: usize,
     ) {
-        let at = |i: usize, j: usize| base + (j * t.nx + i) as u32;
         // Grid lines at multiples of `step`, always including the chunk's far edges.
         let lines = |a: usize, b: usize| {
             let mut v: Vec<usize> = (a..b).step_by(step).collect();
@@ -182,6 +183,16 @@ impl Mesh {
             v
         };
         let (xs, ys) = (lines(i0, i1), lines(j0, j1));
+        let first = self.vertices.len() as u32;
+        for &j in &ys {
+            for &i in &xs {
+                self.vertices.push(grid[j * t.nx + i]);
+            }
+        }
+        // The copy of grid vertex (i, j), which lies on this level's lines.
+        let column = |i: usize| xs.iter().position(|&x| x == i).expect("on a line") as u32;
+        let row = |j: usize| ys.iter().position(|&y| y == j).expect("on a line") as u32;
+        let at = |i: usize, j: usize| first + row(j) * xs.len() as u32 + column(i);
         for w in ys.windows(2) {
             for u in xs.windows(2) {
                 let (a, b, c, d) = (
