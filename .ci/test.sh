@@ -11,4 +11,5 @@ echo "== cargo test --workspace (HETSIM_BACKEND=vulkan)"
 HETSIM_BACKEND=vulkan cargo test --workspace
 echo "== rendered-image tests again (HETSIM_BACKEND=gl)"
 HETSIM_BACKEND=gl cargo test -p hetsim-tests \
-    --test render --test vision --test vo_scale --test slam --test team
+    --test render --test vision --test vo_scale --test slam --test team \
+    --test cameras --test oracle

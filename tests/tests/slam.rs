@@ -216,7 +216,7 @@ fn metrics(dir: &std::path::Path) -> serde_json::Value {
 /// comes back, the graphs exchanged over the radio; the cooperative estimates beat the open
 /// loop for both robots and the image match pulls Ressac's altitude back.
 #[test]
-fn cooperative_slam_beats_open_loop_in_the_short_village() {
+fn cooperative_slam_corrects_ressac_and_keeps_dala_within_one_percent() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("run");
     hetsim_tests::printed_digest(&hetsim_tests::hetsim(
@@ -240,12 +240,15 @@ fn cooperative_slam_beats_open_loop_in_the_short_village() {
         coop < open,
         "ressac: cooperative ATE {coop:.3} m, open loop {open:.3} m"
     );
-    // Dala's open loop is good to centimetres on textured ground; events whose noise is at
-    // least 0.5 m (rendezvous 0.5 m, GPS 1.5 m) may move it, but by less than their sigma.
+    // Dala's open loop is good to centimetres on textured ground, better than its events
+    // (rendezvous 0.5 m, GPS 1.5 m): they may move it, but its estimate must stay a good
+    // SLAM's, within 1 % of the distance it travelled (measured when set: 0.091 m over 25 m,
+    // open loop 0.061 m; the GPS fix at 31 s moves it from 0.14 to 0.21 m).
     let (coop, open) = (ate("slam", "dala"), ate("slam-open", "dala"));
+    let length = m["estimates"]["slam/dala"]["length_m"].as_f64().unwrap();
     assert!(
-        coop < open + 0.5,
-        "dala: cooperative ATE {coop:.3} m, open loop {open:.3} m"
+        coop < 0.01 * length,
+        "dala: cooperative ATE {coop:.3} m (open loop {open:.3} m) over {length:.1} m"
     );
     let slam = &m["slam"];
     let events = |robot: &str, kind: &str| -> Vec<serde_json::Value> {

@@ -160,6 +160,9 @@ struct VoRun {
 impl VoRun {
     fn median_ratio(&self) -> f64 {
         let mut r = self.ratios.clone();
+        if r.is_empty() {
+            return f64::NAN;
+        }
         r.sort_by(f64::total_cmp);
         r[r.len() / 2]
     }

@@ -235,11 +235,14 @@ pub fn render(scenarios: &[PathBuf], options: &RenderOptions) -> Result<Figures>
             ("fps_1024x768", "1024x768 frames/s"),
             ("stereo_pairs_per_s_1024x768", "1024x768 stereo pairs/s"),
             ("fps_120x88", "120x88 frames/s"),
+            ("start_ms", "renderer start ms (bake + upload)"),
         ],
     );
     for s in scenarios {
         let loaded = load_scenario(s, &LoadOptions::default())?;
+        let start = wall_clock();
         let mut renderer = Renderer::new(&loaded.world, options)?;
+        let start_ms = start.elapsed().as_secs_f64() * 1e3;
         if f.about.is_empty() {
             let a = renderer.adapter();
             f.about.insert(
@@ -285,6 +288,7 @@ pub fn render(scenarios: &[PathBuf], options: &RenderOptions) -> Result<Figures>
             json!(rates[0]),
             json!(rates[1]),
             json!(rates[2]),
+            json!(start_ms),
         ]);
     }
     Ok(f)

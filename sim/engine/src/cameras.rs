@@ -82,7 +82,6 @@ pub struct Cameras {
     parts: Vec<(Vec<RobotPart>, u32)>,
     far_m: f64,
     dt_ns: u64,
-    depth: bool,
 }
 
 fn robot_parts(model: &hetsim_scene::RobotModel) -> Vec<RobotPart> {
@@ -122,13 +121,11 @@ fn robot_parts(model: &hetsim_scene::RobotModel) -> Vec<RobotPart> {
 }
 
 impl Cameras {
-    /// The scenario's cameras, or `None` when no robot has one; `depth`: render ground-truth
-    /// depth with every image (for frame dumps; robot software never gets it).
+    /// The scenario's cameras, or `None` when no robot has one.
     pub fn new(
         scenario: &Scenario,
         streams: &Streams,
         options: &RenderOptions,
-        depth: bool,
     ) -> Result<Option<Self>, RenderError> {
         let clock: SimClock = scenario.clock;
         let mut rigs = Vec::new();
@@ -276,7 +273,6 @@ impl Cameras {
             parts,
             far_m,
             dt_ns: clock.dt_ns(),
-            depth,
         }))
     }
 
@@ -291,13 +287,16 @@ impl Cameras {
     }
 
     /// Renders every camera due at the end of tick `tick` (robots where physics has them),
-    /// keeping only the cameras `keep` accepts; returns the shots in camera order.
+    /// keeping only the cameras `keep` accepts, with ground-truth depth for those `depth`
+    /// accepts (frame dumps; robot software never gets depth); returns the shots in camera
+    /// order.
     pub fn capture(
         &mut self,
         physics: &Physics,
         tick: u64,
         stamp_ns: u64,
         keep: &dyn Fn(&str) -> bool,
+        depth: &dyn Fn(&str) -> bool,
     ) -> Vec<Shot> {
         let after = tick + 1;
         let due: Vec<usize> = (0..self.rigs.len())
@@ -321,7 +320,12 @@ impl Cameras {
         let mut spans = Vec::new();
         for &k in &due {
             let rig = &self.rigs[k];
-            let world_from_mount = physics.pose(rig.robot) * rig.body_from_mount;
+            let body = physics.pose(rig.robot);
+            let world_from_mount = body * rig.body_from_mount;
+            let with_depth = depth(&rig.topic);
+            // Every camera of a robot picks the terrain's levels of detail from the robot's
+            // position, so a stereo pair sees the same geometry.
+            let lod_from = Some(nalgebra::Point3::from(body.translation.vector));
             let start = views.len();
             match &rig.model {
                 Model::Pinhole { render, .. } => views.push(CameraView {
@@ -332,7 +336,8 @@ impl Cameras {
                     ),
                     near_far_m: [0.01, self.far_m],
                     hide_robot: Some(rig.robot),
-                    depth: self.depth,
+                    depth: with_depth,
+                    lod_from,
                 }),
                 Model::Omni { face, .. } => {
                     for (yaw, pitch) in CUBE {
@@ -346,7 +351,8 @@ impl Cameras {
                             ),
                             near_far_m: [0.01, self.far_m],
                             hide_robot: Some(rig.robot),
-                            depth: self.depth,
+                            depth: with_depth,
+                            lod_from,
                         });
                     }
                 }

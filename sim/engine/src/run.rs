@@ -142,7 +142,7 @@ fn run_on_worker(
         .collect();
     let mut sensors = SensorSuite::new(scenario, &streams);
     let mut cameras = match &render {
-        Some(o) => Cameras::new(scenario, &streams, o, dump.is_some())?,
+        Some(o) => Cameras::new(scenario, &streams, o)?,
         None => None,
     };
     let mut comms = Comms::new(scenario.file.comms.clone(), clock, names.clone(), streams);
@@ -287,7 +287,12 @@ fn run_on_worker(
                         .position(|n| n == robot)
                         .is_none_or(|i| statuses[i].wants_images)
             };
-            for shot in cams.capture(&physics, tick, stamp, &wanted) {
+            // Ground-truth depth only for the frames the dump writes.
+            let depth = |topic: &str| {
+                dump.as_ref()
+                    .is_some_and(|d| d.wants(topic) && d.in_window(stamp))
+            };
+            for shot in cams.capture(&physics, tick, stamp, &wanted, &depth) {
                 if let Some(d) = dump.as_deref_mut() {
                     if d.wants(&shot.topic) && d.in_window(stamp) {
                         d.write(&shot)?;

@@ -328,43 +328,49 @@ fn floor() -> Texels {
 }
 
 /// The mip chain of a level-0 texture, level 0 first: 2x2 box filter, in linear light for
-/// colour textures.
-pub(crate) fn mips(t: &Texels) -> Vec<Vec<u8>> {
-    let to_linear: Box<dyn Fn(u8) -> f32> = if t.encoded {
-        Box::new(decode)
-    } else {
-        Box::new(|b| b as f32 / 255.0)
+/// gamma-encoded textures (value textures are averaged as stored). Rows in parallel.
+pub(crate) fn mips(t: Texels) -> Vec<Vec<u8>> {
+    let encoded = t.encoded;
+    let to_linear = move |b: u8| {
+        if encoded {
+            decode(b)
+        } else {
+            b as f32 / 255.0
+        }
     };
-    let from_linear: Box<dyn Fn(f32) -> u8> = if t.encoded {
-        Box::new(encode)
-    } else {
-        Box::new(|l| (l.clamp(0.0, 1.0) * 255.0 + 0.5) as u8)
+    let from_linear = move |l: f32| {
+        if encoded {
+            encode(l)
+        } else {
+            (l.clamp(0.0, 1.0) * 255.0 + 0.5) as u8
+        }
     };
-    let mut levels = vec![t.rgba.clone()];
     let mut side = t.side as usize;
+    let mut levels = vec![t.rgba];
     while side > 1 {
         let prev = levels.last().expect("level 0");
         let half = side / 2;
         let mut next = vec![0u8; half * half * 4];
-        for j in 0..half {
-            for i in 0..half {
-                for c in 0..4 {
-                    let at = |x: usize, y: usize| prev[(y * side + x) * 4 + c];
-                    let o = &mut next[(j * half + i) * 4 + c];
-                    let quad = [
-                        at(2 * i, 2 * j),
-                        at(2 * i + 1, 2 * j),
-                        at(2 * i, 2 * j + 1),
-                        at(2 * i + 1, 2 * j + 1),
-                    ];
-                    *o = if c == 3 {
-                        255
-                    } else {
-                        from_linear(quad.iter().map(|&b| to_linear(b)).sum::<f32>() / 4.0)
-                    };
+        next.par_chunks_mut(half * 4)
+            .enumerate()
+            .for_each(|(j, row)| {
+                for (i, px) in row.chunks_exact_mut(4).enumerate() {
+                    for (c, o) in px.iter_mut().enumerate() {
+                        let at = |x: usize, y: usize| prev[(y * side + x) * 4 + c];
+                        let quad = [
+                            at(2 * i, 2 * j),
+                            at(2 * i + 1, 2 * j),
+                            at(2 * i, 2 * j + 1),
+                            at(2 * i + 1, 2 * j + 1),
+                        ];
+                        *o = if c == 3 {
+                            255
+                        } else {
+                            from_linear(quad.iter().map(|&b| to_linear(b)).sum::<f32>() / 4.0)
+                        };
+                    }
                 }
-            }
-        }
+            });
         levels.push(next);
         side = half;
     }
@@ -374,6 +380,20 @@ pub(crate) fn mips(t: &Texels) -> Vec<Vec<u8>> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_shader_tiles_the_detail_texture_as_it_was_baked() {
+        let line = crate::SCENE_WGSL
+            .lines()
+            .find(|l| l.starts_with("const DETAIL_TILE_M: f32 = "))
+            .expect("the shader declares the detail tile");
+        let value: f32 = line
+            .trim_start_matches("const DETAIL_TILE_M: f32 = ")
+            .trim_end_matches(';')
+            .parse()
+            .unwrap();
+        assert_eq!(value, DETAIL_TILE_M);
+    }
 
     #[test]
     fn every_layer_is_baked_at_the_same_size() {
@@ -401,8 +421,7 @@ mod tests {
 
     #[test]
     fn mip_levels_halve_down_to_one_texel_and_keep_the_mean() {
-        let t = floor();
-        let levels = mips(&t);
+        let levels = mips(floor());
         assert_eq!(levels.len(), LAYER_TEXELS.trailing_zeros() as usize + 1);
         assert_eq!(levels.last().unwrap().len(), 4);
         let mean = |bytes: &[u8]| {

@@ -110,6 +110,10 @@ pub struct CameraView {
     /// Render and read back linear depth too (frame dumps, tests, depth cameras); without
     /// it only colour is written and read.
     pub depth: bool,
+    /// Where the terrain's levels of detail are measured from (default: the optical
+    /// centre). Views that must see the same geometry (a stereo pair, a robot's cameras)
+    /// share one point.
+    pub lod_from: Option<nalgebra::Point3<f64>>,
 }
 
 impl CameraView {
@@ -129,6 +133,7 @@ impl CameraView {
             near_far_m,
             hide_robot: None,
             depth: false,
+            lod_from: None,
         }
     }
 
@@ -178,6 +183,7 @@ mod tests {
             near_far_m: [0.05, 100.0],
             hide_robot: None,
             depth: false,
+            lod_from: None,
         };
         let m = view.view_proj();
         for p in [

@@ -54,11 +54,13 @@ const LOD_FROM_M: [f64; 3] = [100.0, 200.0, 400.0];
 /// The focal length the distances are for: 1024 px over 60°.
 const LOD_FOCAL_PX: f64 = 887.0;
 
-/// The terrain chunks a view can see, nearest first (ties by index, so the order is fixed),
-/// with the level of detail for each.
+/// The terrain chunks a view can see, nearest first to its LOD point (ties by index, so the
+/// order is fixed), with the level of detail for each.
 fn visible_chunks(chunks: &[Chunk], view: &CameraView) -> Vec<(usize, usize)> {
     let m = view.view_proj();
-    let eye = view.world_from_optical.translation.vector;
+    let eye = view
+        .lod_from
+        .map_or(view.world_from_optical.translation.vector, |p| p.coords);
     let mut seen: Vec<(f64, usize)> = chunks
         .iter()
         .enumerate()

@@ -61,7 +61,7 @@ pub struct Frame {
     pub width: u32,
     /// Height, pixels.
     pub height: u32,
-    /// RGBA, 8 bits per channel (sRGB-encoded colour, alpha 255), row-major from the
+    /// RGBA, 8 bits per channel (colour encoded as `linear^(1/2.2)`, alpha 255), row-major from the
     /// top-left, tightly packed: the bytes the GPU wrote.
     pub rgba: Vec<u8>,
     /// Depth along the optical axis, metres, per pixel, 0 where nothing was hit; only for
@@ -217,7 +217,7 @@ fn pick_adapter(options: &RenderOptions) -> Result<wgpu::Adapter, RenderError> {
 
 impl Renderer {
     /// A renderer for `world` on the adapter the options (or environment) choose. Bakes the
-    /// world's materials (a fraction of a second on two CPU cores).
+    /// world's materials (`hetsim bench --render` reports how long this takes).
     pub fn new(world: &World, options: &RenderOptions) -> Result<Self, RenderError> {
         let adapter = pick_adapter(options)?;
         let info = adapter.get_info();
@@ -397,19 +397,20 @@ fn upload_materials(
     queue: &wgpu::Queue,
     terrain_area: Option<([f64; 2], f64)>,
 ) -> [wgpu::TextureView; 3] {
-    let upload = |label: &str, layers: &[bake::Texels], dimension: wgpu::TextureViewDimension| {
+    let upload = |label: &str, layers: Vec<bake::Texels>, dimension: wgpu::TextureViewDimension| {
         let side = layers[0].side;
+        let count = layers.len() as u32;
         // Plain 8-bit unorm, whatever the encoding: llvmpipe filters these with its fast
         // 8-bit path, sRGB formats with a float path.
         let format = wgpu::TextureFormat::Rgba8Unorm;
-        let levels: Vec<Vec<Vec<u8>>> = layers.iter().map(bake::mips).collect();
+        let levels: Vec<Vec<Vec<u8>>> = layers.into_iter().map(bake::mips).collect();
         let mip_level_count = levels[0].len() as u32;
         let texture = device.create_texture(&wgpu::TextureDescriptor {
             label: Some(label),
             size: wgpu::Extent3d {
                 width: side,
                 height: side,
-                depth_or_array_layers: layers.len() as u32,
+                depth_or_array_layers: count,
             },
             mip_level_count,
             sample_count: 1,
@@ -463,8 +464,8 @@ fn upload_materials(
     let layers = bake::layers();
     debug_assert_eq!(layers.len() as u32, bake::layer::COUNT);
     [
-        upload("terrain", &[terrain], d2),
-        upload("detail", &[bake::detail()], d2),
-        upload("materials", &layers, wgpu::TextureViewDimension::D2Array),
+        upload("terrain", vec![terrain], d2),
+        upload("detail", vec![bake::detail()], d2),
+        upload("materials", layers, wgpu::TextureViewDimension::D2Array),
     ]
 }

@@ -5,8 +5,9 @@
 //!   the adapter's name) choose. No window or display server is needed.
 //! * Materials are baked once per world on the CPU into mip-mapped textures (`bake`), sampled
 //!   with trilinear (and, where the adapter offers it, anisotropic) filtering by one shader,
-//!   `shaders/scene.wgsl`, into an sRGB target; linear depth (distance along the optical
-//!   axis, metres) goes to a second target only for views that ask for it.
+//!   `shaders/scene.wgsl`, into an 8-bit target holding `linear^(1/2.2)` (the gamma is
+//!   applied per vertex to the light, see the shader); linear depth (distance along the
+//!   optical axis, metres) goes to a second target only for views that ask for it.
 //! * Back faces are culled, terrain chunks outside a view are not drawn, and what is drawn
 //!   goes nearest first, so that hidden surfaces are rejected before they are shaded.
 //! * Cameras are exact pinholes: pixel `(u, v)` (OpenCV convention, centre of the top-left

@@ -287,7 +287,7 @@ fn skin(s: &Solid) -> Skin {
             top: pick(layer::ROOF, layer::ROOFS),
             tint: [255; 4],
             tile_m: bake::FACADE_TILE_M,
-            // Whole bays only, so that doors stay at the base: shift along u alone.
+            // Shift along u alone, so that doors and the plinth stay at the base.
             offset: [offset[0], 0.0],
         },
         SolidKind::Wall | SolidKind::Obstacle => {
