@@ -27,12 +27,10 @@ fn background(outdoor: bool) -> wgpu::Color {
 
 /// Whether a box is entirely outside one of the clip volume's six planes.
 fn outside(m: &Matrix4<f64>, lo: [f32; 3], hi: [f32; 3]) -> bool {
-    let corners: Vec<Vector4<f64>> = (0..8)
-        .map(|k| {
-            let pick = |axis: usize| f64::from(if k >> axis & 1 == 0 { lo } else { hi }[axis]);
-            m * Vector4::new(pick(0), pick(1), pick(2), 1.0)
-        })
-        .collect();
+    let corners: [Vector4<f64>; 8] = std::array::from_fn(|k| {
+        let pick = |axis: usize| f64::from(if k >> axis & 1 == 0 { lo } else { hi }[axis]);
+        m * Vector4::new(pick(0), pick(1), pick(2), 1.0)
+    });
     let planes: [fn(&Vector4<f64>) -> f64; 6] = [
         |c| c.w + c.x,
         |c| c.w - c.x,
@@ -56,15 +54,14 @@ const LOD_FOCAL_PX: f64 = 887.0;
 
 /// The terrain chunks a view can see, nearest first to its LOD point (ties by index, so the
 /// order is fixed), with the level of detail for each.
-fn visible_chunks(chunks: &[Chunk], view: &CameraView) -> Vec<(usize, usize)> {
-    let m = view.view_proj();
+fn visible_chunks(chunks: &[Chunk], view: &CameraView, m: &Matrix4<f64>) -> Vec<(usize, usize)> {
     let eye = view
         .lod_from
         .map_or(view.world_from_optical.translation.vector, |p| p.coords);
     let mut seen: Vec<(f64, usize)> = chunks
         .iter()
         .enumerate()
-        .filter(|(_, c)| !outside(&m, c.min, c.max))
+        .filter(|(_, c)| !outside(m, c.min, c.max))
         .map(|(i, c)| {
             // Distance from the eye to the nearest point of the chunk's box.
             let gap = |k: usize, e: f64| {
@@ -310,7 +307,7 @@ impl Renderer {
             pass.set_pipeline(terrain);
             pass.set_vertex_buffer(0, g.vertices.slice(..));
             pass.set_index_buffer(g.indices.slice(..), wgpu::IndexFormat::Uint32);
-            for (i, lod) in visible_chunks(chunks, v) {
+            for (i, lod) in visible_chunks(chunks, v, &m) {
                 pass.draw_indexed(chunks[i].lods[lod].clone(), 0, 0..1);
             }
         }
