@@ -20,59 +20,108 @@ pub fn response(img: &Gray) -> Vec<f32> {
     let mut ixx = vec![0f32; w * h];
     let mut iyy = vec![0f32; w * h];
     let mut ixy = vec![0f32; w * h];
+    if w < 3 || h < 3 {
+        return vec![0.0; w * h];
+    }
     for y in 1..h - 1 {
-        for x in 1..w - 1 {
-            let p = |dx: isize, dy: isize| {
-                img.at((x as isize + dx) as usize, (y as isize + dy) as usize)
-            };
-            let gx = (p(1, -1) + 2.0 * p(1, 0) + p(1, 1)) - (p(-1, -1) + 2.0 * p(-1, 0) + p(-1, 1));
-            let gy = (p(-1, 1) + 2.0 * p(0, 1) + p(1, 1)) - (p(-1, -1) + 2.0 * p(0, -1) + p(1, -1));
-            let i = y * w + x;
-            ixx[i] = gx * gx;
-            iyy[i] = gy * gy;
-            ixy[i] = gx * gy;
+        let (a, b, c) = (
+            &img.data[(y - 1) * w..y * w],
+            &img.data[y * w..(y + 1) * w],
+            &img.data[(y + 1) * w..(y + 2) * w],
+        );
+        let row = y * w + 1..(y + 1) * w - 1;
+        let (oxx, oyy, oxy) = (&mut ixx[row.clone()], &mut iyy[row.clone()], &mut ixy[row]);
+        for (i, ((xx, yy), xy)) in oxx
+            .iter_mut()
+            .zip(oyy.iter_mut())
+            .zip(oxy.iter_mut())
+            .enumerate()
+        {
+            // Pixel x = i + 1; its neighbours at i, i + 1, i + 2.
+            let gx = (a[i + 2] + 2.0 * b[i + 2] + c[i + 2]) - (a[i] + 2.0 * b[i] + c[i]);
+            let gy = (c[i] + 2.0 * c[i + 1] + c[i + 2]) - (a[i] + 2.0 * a[i + 1] + a[i + 2]);
+            *xx = gx * gx;
+            *yy = gy * gy;
+            *xy = gx * gy;
         }
     }
-    let smooth = |a: &[f32]| {
-        const K: [f32; 5] = [1.0, 4.0, 6.0, 4.0, 1.0];
-        let mut tmp = vec![0f32; w * h];
-        let mut out = vec![0f32; w * h];
-        for y in 0..h {
-            for x in 2..w.saturating_sub(2) {
-                tmp[y * w + x] = (0..5).map(|k| K[k] * a[y * w + x + k - 2]).sum::<f32>() / 16.0;
+    // Separable binomial [1 4 6 4 1] / 16: rows into `tmp`, then columns row by row
+    // straight into the response.
+    let smooth_rows = |a: &mut [f32]| {
+        let mut row = vec![0f32; w];
+        for line in a.chunks_exact_mut(w) {
+            row.copy_from_slice(line);
+            line.fill(0.0);
+            if w >= 5 {
+                for (d, s) in line[2..w - 2].iter_mut().zip(row.windows(5)) {
+                    *d = (s[0] + 4.0 * s[1] + 6.0 * s[2] + 4.0 * s[3] + s[4]) / 16.0;
+                }
             }
         }
-        for y in 2..h.saturating_sub(2) {
-            for x in 0..w {
-                out[y * w + x] =
-                    (0..5).map(|k| K[k] * tmp[(y + k - 2) * w + x]).sum::<f32>() / 16.0;
-            }
-        }
-        out
     };
-    let (sxx, syy, sxy) = (smooth(&ixx), smooth(&iyy), smooth(&ixy));
-    (0..w * h)
-        .map(|i| sxx[i] * syy[i] - sxy[i] * sxy[i] - 0.04 * (sxx[i] + syy[i]).powi(2))
-        .collect()
+    smooth_rows(&mut ixx);
+    smooth_rows(&mut iyy);
+    smooth_rows(&mut ixy);
+    let mut out = vec![0f32; w * h];
+    let (mut sxx, mut syy, mut sxy) = (vec![0f32; w], vec![0f32; w], vec![0f32; w]);
+    let column = |a: &[f32], y: usize, o: &mut [f32]| {
+        let r = |k: usize| &a[(y + k - 2) * w..(y + k - 1) * w];
+        let rows = r(0).iter().zip(r(1)).zip(r(2)).zip(r(3)).zip(r(4));
+        for (d, ((((r0, r1), r2), r3), r4)) in o.iter_mut().zip(rows) {
+            *d = (r0 + 4.0 * r1 + 6.0 * r2 + 4.0 * r3 + r4) / 16.0;
+        }
+    };
+    for y in 2..h.saturating_sub(2) {
+        column(&ixx, y, &mut sxx);
+        column(&iyy, y, &mut syy);
+        column(&ixy, y, &mut sxy);
+        for (((o, a), b), c) in out[y * w..(y + 1) * w]
+            .iter_mut()
+            .zip(&sxx)
+            .zip(&syy)
+            .zip(&sxy)
+        {
+            *o = a * b - c * c - 0.04 * ((a + b) * (a + b));
+        }
+    }
+    out
 }
 
 /// Local maxima of the Harris response in 5 x 5 neighbourhoods, above `relative` times the
 /// image's largest response and at least `border` pixels from the edges, strongest first
 /// (ties broken by position, so the order is deterministic).
 pub fn detect(img: &Gray, relative: f32, border: usize) -> Vec<Corner> {
+    detect_with_max(img, relative, border).0
+}
+
+/// [`detect`], and the image's largest response: the corners of a higher `relative` are
+/// those of these whose response reaches that fraction of it.
+pub fn detect_with_max(img: &Gray, relative: f32, border: usize) -> (Vec<Corner>, f32) {
     let r = response(img);
     let (w, h) = (img.width, img.height);
     let max = r.iter().cloned().fold(0.0f32, f32::max);
     if max <= 0.0 {
-        return Vec::new();
+        return (Vec::new(), max);
     }
     let threshold = relative * max;
     let b = border.max(3);
+    // The 5 x 5 maximum of the response (rows, then columns): only a pixel equal to it can
+    // be a peak; the exact test (with its tie rule) runs on those alone.
+    let mut rows = vec![f32::MIN; w * h];
+    for (src, dst) in r.chunks_exact(w).zip(rows.chunks_exact_mut(w)) {
+        for (x, d) in dst[2..w.saturating_sub(2)].iter_mut().enumerate() {
+            let s = &src[x..x + 5];
+            *d = s[0].max(s[1]).max(s[2]).max(s[3]).max(s[4]);
+        }
+    }
     let mut corners = Vec::new();
     for y in b..h.saturating_sub(b) {
+        let col = |k: usize| &rows[(y + k - 2) * w..(y + k - 1) * w];
+        let (r0, r1, r2, r3, r4) = (col(0), col(1), col(2), col(3), col(4));
+        let line = &r[y * w..(y + 1) * w];
         for x in b..w.saturating_sub(b) {
-            let v = r[y * w + x];
-            if v < threshold {
+            let v = line[x];
+            if v < threshold || v < r0[x].max(r1[x]).max(r2[x]).max(r3[x]).max(r4[x]) {
                 continue;
             }
             let mut peak = true;
@@ -99,7 +148,7 @@ pub fn detect(img: &Gray, relative: f32, border: usize) -> Vec<Corner> {
             .total_cmp(&a.response)
             .then((a.y, a.x).cmp(&(b.y, b.x)))
     });
-    corners
+    (corners, max)
 }
 
 /// Which of the 3 x 3 regions a pixel lies in (row-major).
@@ -126,7 +175,23 @@ pub fn select_new(
     for p in tracked {
         count[region(width, height, p[0], p[1])] += 1;
     }
-    let mut taken: Vec<[f64; 2]> = tracked.to_vec();
+    // Taken points bucketed in cells of `min_distance`: a new one is checked against the
+    // 3 x 3 cells around it, not against every point taken.
+    let cell = min_distance.max(1.0);
+    let (cols, rows) = (
+        (width as f64 / cell) as usize + 3,
+        (height as f64 / cell) as usize + 3,
+    );
+    let bucket = |p: [f64; 2]| {
+        let c = ((p[0] / cell).floor().max(-1.0) + 1.0) as usize;
+        let r = ((p[1] / cell).floor().max(-1.0) + 1.0) as usize;
+        (c.min(cols - 2), r.min(rows - 2))
+    };
+    let mut grid: Vec<Vec<[f64; 2]>> = vec![Vec::new(); cols * rows];
+    for &p in tracked {
+        let (c, r) = bucket(p);
+        grid[r * cols + c].push(p);
+    }
     let mut out = Vec::new();
     for c in corners {
         let reg = region(width, height, c.x as f64, c.y as f64);
@@ -134,14 +199,20 @@ pub fn select_new(
             continue;
         }
         let p = [c.x as f64, c.y as f64];
-        if taken
-            .iter()
-            .any(|q| (q[0] - p[0]).hypot(q[1] - p[1]) < min_distance)
-        {
+        let (bc, br) = bucket(p);
+        let near = (br - 1..=br + 1).any(|r| {
+            (bc - 1..=bc + 1).any(|cc| {
+                grid[r * cols + cc].iter().any(|q| {
+                    let (dx, dy) = (q[0] - p[0], q[1] - p[1]);
+                    dx * dx + dy * dy < min_distance * min_distance
+                })
+            })
+        });
+        if near {
             continue;
         }
         count[reg] += 1;
-        taken.push(p);
+        grid[br * cols + bc].push(p);
         out.push(*c);
     }
     out

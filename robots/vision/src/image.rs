@@ -27,6 +27,29 @@ impl Gray {
         }
     }
 
+    /// The image at half resolution: each pixel the mean of a 2 x 2 block (pixel `i` of the
+    /// result is centred on `2 i + 0.5` of this one).
+    pub fn half(&self) -> Self {
+        let (w, h) = (self.width / 2, self.height / 2);
+        let mut data = Vec::with_capacity(w * h);
+        for y in 0..h {
+            let (a, b) = (
+                &self.data[2 * y * self.width..][..2 * w],
+                &self.data[(2 * y + 1) * self.width..][..2 * w],
+            );
+            data.extend(
+                a.chunks_exact(2)
+                    .zip(b.chunks_exact(2))
+                    .map(|(p, q)| 0.25 * ((p[0] + p[1]) + (q[0] + q[1]))),
+            );
+        }
+        Self {
+            width: w,
+            height: h,
+            data,
+        }
+    }
+
     /// The intensity at integer `(x, y)`.
     #[inline]
     pub fn at(&self, x: usize, y: usize) -> f32 {

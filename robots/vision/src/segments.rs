@@ -22,6 +22,8 @@ use crate::{Camera, Gray};
 use nalgebra::{Isometry3, Point3, Vector2, Vector3};
 use std::f64::consts::PI;
 
+mod scale;
+use scale::rescale;
 mod track;
 pub use track::{project_segment, track, TrackParams};
 
@@ -143,6 +145,8 @@ struct Field {
     height: usize,
     magnitude: Vec<f64>,
     angle: Vec<Option<f64>>,
+    /// `(cos, sin)` of the angle where there is one.
+    unit: Vec<[f64; 2]>,
 }
 
 impl Field {
@@ -150,16 +154,26 @@ impl Field {
         let (w, h) = (img.width - 1, img.height - 1);
         let mut magnitude = vec![0.0; w * h];
         let mut angle = vec![None; w * h];
+        let mut unit = vec![[0.0; 2]; w * h];
+        let iw = img.width;
         for y in 0..h {
+            let (top, bottom) = (
+                &img.data[y * iw..(y + 1) * iw],
+                &img.data[(y + 1) * iw..(y + 2) * iw],
+            );
             for x in 0..w {
-                let p = |dx, dy| img.at(x + dx, y + dy) as f64;
-                let (c1, c2) = (p(1, 1) - p(0, 0), p(1, 0) - p(0, 1));
+                let (c1, c2) = (
+                    bottom[x + 1] as f64 - top[x] as f64,
+                    top[x + 1] as f64 - bottom[x] as f64,
+                );
                 let (gx, gy) = ((c1 + c2) / 2.0, (c1 - c2) / 2.0);
-                let m = gx.hypot(gy);
+                let m = (gx * gx + gy * gy).sqrt();
                 let i = y * w + x;
                 magnitude[i] = m;
                 if m > threshold {
+                    // The level-line angle atan2(gx, -gy) and its cosine and sine.
                     angle[i] = Some(gx.atan2(-gy));
+                    unit[i] = [-gy / m, gx / m];
                 }
             }
         }
@@ -168,6 +182,7 @@ impl Field {
             height: h,
             magnitude,
             angle,
+            unit,
         }
     }
 }
@@ -181,81 +196,19 @@ fn angle_diff(a: f64, b: f64) -> f64 {
     d
 }
 
-/// Separable Gaussian blur.
-fn blur(img: &Gray, sigma: f64) -> Gray {
-    if sigma <= 0.0 {
-        return img.clone();
-    }
-    let r = (3.0 * sigma).ceil() as isize;
-    let kernel: Vec<f32> = (-r..=r)
-        .map(|k| (-(k * k) as f64 / (2.0 * sigma * sigma)).exp() as f32)
-        .collect();
-    let norm: f32 = kernel.iter().sum();
-    let (w, h) = (img.width as isize, img.height as isize);
-    let pass = |src: &[f32], horizontal: bool| -> Vec<f32> {
-        let mut out = vec![0f32; src.len()];
-        for y in 0..h {
-            for x in 0..w {
-                let mut acc = 0f32;
-                for (j, k) in kernel.iter().enumerate() {
-                    let o = j as isize - r;
-                    let (xx, yy) = if horizontal {
-                        ((x + o).clamp(0, w - 1), y)
-                    } else {
-                        (x, (y + o).clamp(0, h - 1))
-                    };
-                    acc += k * src[(yy * w + xx) as usize];
-                }
-                out[(y * w + x) as usize] = acc / norm;
-            }
-        }
-        out
-    };
-    let tmp = pass(&img.data, true);
-    Gray {
-        width: img.width,
-        height: img.height,
-        data: pass(&tmp, false),
-    }
-}
-
-/// The image scaled by `scale` (pixel `i` of the result samples the original at `i / scale`),
-/// blurred first with σ = 0.6 / scale (LSD's Gaussian sub-sampling).
-fn rescale(img: &Gray, scale: f64) -> Gray {
-    let sigma = if scale < 1.0 { 0.6 / scale } else { 0.6 };
-    let smooth = blur(img, sigma);
-    if scale == 1.0 {
-        return smooth;
-    }
-    let (w, h) = (
-        ((img.width as f64) * scale).floor() as usize,
-        ((img.height as f64) * scale).floor() as usize,
-    );
-    let mut data = Vec::with_capacity(w * h);
-    for y in 0..h {
-        for x in 0..w {
-            let v = smooth.sample(x as f64 / scale, y as f64 / scale);
-            data.push(v.expect("inside: the scaled size is floored"));
-        }
-    }
-    Gray {
-        width: w,
-        height: h,
-        data,
-    }
-}
-
 /// A grown region: its pixels and their mean level-line angle.
 struct Region {
     pixels: Vec<(usize, usize)>,
     angle: f64,
 }
 
+/// Grows a region from `seed` over the 8-neighbours whose angle is within `tolerance` of the
+/// region's mean angle (kept as the sum of unit vectors: `|a - θ| <= τ` is
+/// `u_a · s >= cos τ |s|`).
 fn grow(field: &Field, used: &mut [bool], seed: (usize, usize), tolerance: f64) -> Region {
     let w = field.width;
-    let seed_angle = field.angle[seed.1 * w + seed.0].expect("seeds have an angle");
-    let (mut sx, mut sy) = (seed_angle.cos(), seed_angle.sin());
-    let mut angle = seed_angle;
+    let [mut sx, mut sy] = field.unit[seed.1 * w + seed.0];
+    let (cos_tol, mut norm) = (tolerance.cos(), 1.0f64);
     let mut pixels = vec![seed];
     used[seed.1 * w + seed.0] = true;
     let mut i = 0;
@@ -267,20 +220,24 @@ fn grow(field: &Field, used: &mut [bool], seed: (usize, usize), tolerance: f64) 
                 if used[j] {
                     continue;
                 }
-                if let Some(a) = field.angle[j] {
-                    if angle_diff(a, angle) <= tolerance {
+                if field.angle[j].is_some() {
+                    let [c, s] = field.unit[j];
+                    if c * sx + s * sy >= cos_tol * norm {
                         used[j] = true;
                         pixels.push((xx, yy));
-                        sx += a.cos();
-                        sy += a.sin();
-                        angle = sy.atan2(sx);
+                        sx += c;
+                        sy += s;
+                        norm = (sx * sx + sy * sy).sqrt();
                     }
                 }
             }
         }
         i += 1;
     }
-    Region { pixels, angle }
+    Region {
+        pixels,
+        angle: sy.atan2(sx),
+    }
 }
 
 /// The rectangle approximating a region.
@@ -539,7 +496,8 @@ fn refine(
         .pixels
         .iter()
         .filter(|&&(x, y)| {
-            (x as f64 - seed.0 as f64).hypot(y as f64 - seed.1 as f64) < rect.width()
+            let (dx, dy) = (x as f64 - seed.0 as f64, y as f64 - seed.1 as f64);
+            dx * dx + dy * dy < rect.width() * rect.width()
         })
         .filter_map(|&(x, y)| field.angle[y * field.width + x])
         .map(|a| (a - seed_angle + PI).rem_euclid(2.0 * PI) - PI)
@@ -564,12 +522,17 @@ fn refine(
     let mut radius = region
         .pixels
         .iter()
-        .map(|&(x, y)| (x as f64 - seed.0 as f64).hypot(y as f64 - seed.1 as f64))
-        .fold(0.0, f64::max);
+        .map(|&(x, y)| {
+            let (dx, dy) = (x as f64 - seed.0 as f64, y as f64 - seed.1 as f64);
+            dx * dx + dy * dy
+        })
+        .fold(0.0, f64::max)
+        .sqrt();
     while density(region, rect) < params.density {
         radius *= 0.75;
         let (keep, drop): (Vec<_>, Vec<_>) = region.pixels.iter().partition(|&&(x, y)| {
-            (x as f64 - seed.0 as f64).hypot(y as f64 - seed.1 as f64) <= radius
+            let (dx, dy) = (x as f64 - seed.0 as f64, y as f64 - seed.1 as f64);
+            dx * dx + dy * dy <= radius * radius
         });
         for (x, y) in drop {
             used[y * field.width + x] = false;

@@ -5,7 +5,7 @@
 //! further left in the right image, on the same row.
 
 use crate::harris::Corner;
-use crate::matching::{Patch, HALF};
+use crate::matching::{row_scores, Patch, HALF};
 use crate::{Camera, Gray};
 use nalgebra::Vector3;
 
@@ -51,6 +51,7 @@ pub fn match_stereo(
         cam.alpha_u * baseline / z_min,
     );
     let mut out = Vec::new();
+    let mut row = Vec::new();
     for c in corners {
         let Some(t) = Patch::at(left, c.x, c.y) else {
             continue;
@@ -62,9 +63,7 @@ pub fn match_stereo(
         if hi <= lo {
             continue;
         }
-        let scores: Vec<(usize, f32)> = (lo..=hi)
-            .filter_map(|x| t.score(right, x, c.y).map(|v| (x, v)))
-            .collect();
+        let scores: Vec<(usize, f32)> = scored(right, &t, c.y, lo, hi, &mut row).collect();
         let Some(&(bx, best)) = scores.iter().max_by(|a, b| a.1.total_cmp(&b.1)) else {
             continue;
         };
@@ -95,8 +94,7 @@ pub fn match_stereo(
         };
         let lo_l = (bx as f64 + d_min).floor() as usize;
         let hi_l = ((bx as f64 + d_max).ceil() as usize).min(left.width - HALF - 1);
-        let back_best = (lo_l..=hi_l.max(lo_l))
-            .filter_map(|x| back.score(left, x, c.y).map(|v| (x, v)))
+        let back_best = scored(left, &back, c.y, lo_l, hi_l.max(lo_l), &mut row)
             .max_by(|a, b| a.1.total_cmp(&b.1));
         if back_best.is_none_or(|(x, _)| x.abs_diff(c.x) > 1) {
             continue;
@@ -114,4 +112,21 @@ pub fn match_stereo(
         });
     }
     out
+}
+
+/// The positions of `xa..=xb` on row `y` where the template scores, with their scores
+/// (`row` is the scratch buffer).
+fn scored<'a>(
+    img: &Gray,
+    template: &Patch,
+    y: usize,
+    xa: usize,
+    xb: usize,
+    row: &'a mut Vec<f32>,
+) -> impl Iterator<Item = (usize, f32)> + 'a {
+    row_scores(img, template, y, xa, xb, row);
+    (xa..=xb)
+        .zip(row.iter())
+        .filter(|(_, v)| !v.is_nan())
+        .map(|(x, &v)| (x, v))
 }

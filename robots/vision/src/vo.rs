@@ -172,9 +172,18 @@ pub fn estimate(
 /// ellipse of `search_px` pixels (1σ) around each prediction; the motion is estimated from
 /// those correspondences. Until a motion is known (first frames, or after a failure) the
 /// search is five times wider.
+///
+/// Two savings keep a 1024 x 768 pair within its time: the ellipse is searched coarse to
+/// fine (at half resolution, then within 2 px at full resolution), and stereo matching
+/// searches the disparities the last frame's points spanned (halved and one and a half
+/// times, plus margins) rather than the whole depth range, which it searches every
+/// `full_stereo_every` frames and after a loss, so nearer or farther structure coming into
+/// view is found again. The narrower window also narrows stereo's ambiguity and left-right
+/// checks: repetitive texture whose rival peak lies outside it no longer rejects a match
+/// (RANSAC then has to).
 pub struct StereoVo {
     bench: crate::stereo::Bench,
-    previous: Option<Vec<(crate::matching::Patch, Vector3<f64>)>>,
+    previous: Option<Vec<(crate::matching::Template, Vector3<f64>)>>,
     velocity: Pose,
     /// No motion estimate yet, or the last one failed: search wider.
     lost: bool,
@@ -184,6 +193,15 @@ pub struct StereoVo {
     pub search_px: f64,
     /// Depth range triangulated, metres.
     pub depth_range_m: [f64; 2],
+    /// Frames between stereo searches over the whole depth range.
+    pub full_stereo_every: u64,
+    corners: Vec<crate::harris::Corner>,
+    max_response: f32,
+    /// The last left image at half resolution.
+    half: Option<crate::Gray>,
+    /// Disparities the last frame's points spanned, pixels.
+    disparities: Option<[f64; 2]>,
+    frames: u64,
 }
 
 impl StereoVo {
@@ -197,7 +215,26 @@ impl StereoVo {
             per_region: 25,
             search_px: 6.0,
             depth_range_m: [0.5, 120.0],
+            full_stereo_every: 10,
+            corners: Vec::new(),
+            max_response: 0.0,
+            half: None,
+            disparities: None,
+            frames: 0,
         }
+    }
+
+    /// The last left image at half resolution (for a caller's [`crate::matching::Template`]s
+    /// and [`crate::matching::search_pyramid`]).
+    pub fn half(&self) -> Option<&crate::Gray> {
+        self.half.as_ref()
+    }
+
+    /// The Harris corners of the last left image (response at least 0.005 of its largest),
+    /// strongest first, and that largest response: a caller wanting a higher threshold
+    /// filters them rather than detecting again.
+    pub fn corners(&self) -> (&[crate::harris::Corner], f32) {
+        (&self.corners, self.max_response)
     }
 
     /// Processes a stereo pair; returns the motion since the previous pair (`None` for the
@@ -208,19 +245,22 @@ impl StereoVo {
         right: &crate::Gray,
         rng: &mut impl rand::Rng,
     ) -> Option<Motion> {
-        use crate::harris::{detect, select_new};
-        use crate::matching::{search_ellipse, Patch};
+        use crate::harris::{detect_with_max, select_new};
+        use crate::matching::{search_pyramid, Template};
         let cam = self.bench.camera;
-        let corners = detect(left, 0.005, 8);
-        let chosen = select_new(&corners, left.width, left.height, &[], self.per_region, 8.0);
+        (self.corners, self.max_response) = detect_with_max(left, 0.005, 8);
+        let corners = &self.corners;
+        let chosen = select_new(corners, left.width, left.height, &[], self.per_region, 8.0);
         let points = crate::stereo::match_stereo(
             left,
             right,
             &self.bench,
             &chosen,
-            self.depth_range_m,
+            self.stereo_depths(),
             0.85,
         );
+        self.frames += 1;
+        let half = left.half();
         let mut motion = None;
         if let Some(prev) = &self.previous {
             // Without a trusted velocity the prediction is poor: search five times wider.
@@ -229,22 +269,23 @@ impl StereoVo {
             } else {
                 self.search_px
             };
-            let s = sigma * sigma;
             let mut data = Vec::new();
-            for (patch, p) in prev {
+            let s = sigma * sigma;
+            for (template, p) in prev {
                 let predicted = self.velocity * nalgebra::Point3::from(*p);
                 let Some(uv) = cam.project(&predicted.coords) else {
                     continue;
                 };
-                let Some(m) = search_ellipse(left, patch, uv, [[s, 0.0], [0.0, s]], 9.21, 0.8)
+                let ellipse = [[s, 0.0], [0.0, s]];
+                let Some(m) = search_pyramid(left, &half, template, uv, ellipse, 9.21, 0.8, 3.0)
                 else {
                     continue;
                 };
                 // The point's 3D position now: a stereo point triangulated at the match.
-                let Some(near) = points
-                    .iter()
-                    .find(|q| (q.left[0] - m.x).hypot(q.left[1] - m.y) < 1.5)
-                else {
+                let Some(near) = points.iter().find(|q| {
+                    let (dx, dy) = (q.left[0] - m.x, q.left[1] - m.y);
+                    dx * dx + dy * dy < 1.5 * 1.5
+                }) else {
                     continue;
                 };
                 data.push(Correspondence {
@@ -259,15 +300,37 @@ impl StereoVo {
                 self.velocity = m.current_from_previous;
             }
         }
+        self.disparities = points.iter().map(|q| q.disparity).fold(None, |r, d| {
+            Some(r.map_or([d, d], |[lo, hi]: [f64; 2]| [lo.min(d), hi.max(d)]))
+        });
         self.previous = Some(
             points
                 .iter()
                 .filter_map(|q| {
-                    Patch::at(left, q.left[0] as usize, q.left[1] as usize).map(|pt| (pt, q.point))
+                    let (x, y) = (q.left[0] as usize, q.left[1] as usize);
+                    Template::at(left, &half, x, y).map(|t| (t, q.point))
                 })
                 .collect(),
         );
+        self.half = Some(half);
         motion
+    }
+
+    /// The depths stereo matching searches this frame: the whole range on the first frame,
+    /// after a loss and every `full_stereo_every` frames; otherwise the disparities of the
+    /// last frame's points from half their least - 2 px to one and a half their largest
+    /// + 4 px.
+    fn stereo_depths(&self) -> [f64; 2] {
+        let [z_min, z_max] = self.depth_range_m;
+        let f = self.bench.camera.alpha_u * self.bench.baseline_m;
+        match self.disparities {
+            Some([lo, hi]) if !self.lost && self.frames % self.full_stereo_every != 0 => {
+                let d_lo = (0.5 * lo - 2.0).max(f / z_max);
+                let d_hi = (1.5 * hi + 4.0).min(f / z_min);
+                [f / d_hi, f / d_lo]
+            }
+            _ => [z_min, z_max],
+        }
     }
 }
 
