@@ -26,6 +26,9 @@ use nalgebra::{DMatrix, DVector, Isometry3, Matrix2, Matrix6, SMatrix, Vector2, 
 /// Anchored Plücker lines in this map (its state holds them after the points).
 pub mod lines;
 
+/// A frame's updates applied to the covariance in one blocked product.
+pub mod deferred;
+
 /// The deletion rule for points and lines: searched at least `min_searches` times and found
 /// in fewer than half of them.
 pub(crate) fn unreliable(searched: u32, found: u32, min_searches: u32) -> bool {
@@ -48,8 +51,10 @@ pub struct PointInfo {
 pub struct LocalMap {
     /// The state mean.
     pub x: DVector<f64>,
-    /// The state covariance.
-    pub p: DMatrix<f64>,
+    /// The state covariance before the pending updates ([`deferred`]); read it with
+    /// [`LocalMap::covariance`] or [`LocalMap::cov_block`].
+    p: DMatrix<f64>,
+    pending: deferred::Pending,
     /// The points, in state order.
     pub points: Vec<PointInfo>,
     /// The lines, in state order (after the points).
@@ -84,6 +89,7 @@ impl LocalMap {
         Self {
             x,
             p: DMatrix::zeros(7, 7),
+            pending: Default::default(),
             points: Vec::new(),
             lines: Vec::new(),
         }
@@ -134,7 +140,8 @@ impl LocalMap {
         j.fixed_view_mut::<3, 3>(0, 0).copy_from(&r.transpose());
         j.fixed_view_mut::<3, 4>(3, 3)
             .copy_from(&(2.0 * lq.fixed_view::<3, 4>(1, 0)));
-        let prr = SMatrix::<f64, 7, 7>::from_fn(|a, b| self.p[(a, b)]);
+        let block = self.cov_block(&[0, 1, 2, 3, 4, 5, 6]);
+        let prr = SMatrix::<f64, 7, 7>::from_fn(|a, b| block[(a, b)]);
         let c = j * prr * j.transpose();
         (c + c.transpose()) * 0.5
     }
@@ -142,6 +149,7 @@ impl LocalMap {
     /// Moves the robot by `motion` (`previous_from_current` of the body), whose covariance
     /// on `(Δp, δθ)` is `cov`.
     pub fn predict(&mut self, motion: &Isometry3<f64>, cov: &Matrix6<f64>) {
+        self.flush();
         let p = self.position();
         let q = self.quaternion();
         let dp = motion.translation.vector;
@@ -188,8 +196,7 @@ impl LocalMap {
     ) -> Option<(Projection, Matrix2<f64>)> {
         let pr = idp::project(sensor, &self.position(), &self.quaternion(), &self.point(k))?;
         let h = Self::h_small(&pr);
-        let idx = self.indices(k);
-        let pss = DMatrix::from_fn(13, 13, |a, b| self.p[(idx[a], idx[b])]);
+        let pss = self.cov_block(&self.indices(k));
         let hs = DMatrix::from_column_slice(2, 13, h.as_slice());
         let s = &hs * pss * hs.transpose();
         let s = Matrix2::new(s[(0, 0)], s[(0, 1)], s[(1, 0)], s[(1, 1)])
@@ -222,14 +229,26 @@ impl LocalMap {
         sigma_px: f64,
         gate: f64,
     ) -> Option<Update> {
-        let (pr, s) = self.predict_point(sensor, k, sigma_px)?;
+        let predicted = self.predict_point(sensor, k, sigma_px)?;
+        self.update_predicted(k, z, &predicted, gate)
+    }
+
+    /// [`LocalMap::update`] with the prediction [`LocalMap::predict_point`] just gave for
+    /// point `k` (the map unchanged since), as a caller that searched the image with it has.
+    pub fn update_predicted(
+        &mut self,
+        k: usize,
+        z: &Vector2<f64>,
+        (pr, s): &(Projection, Matrix2<f64>),
+        gate: f64,
+    ) -> Option<Update> {
         let nu = z - pr.pixel;
         let s_inv = s.try_inverse()?;
         let d2 = (nu.transpose() * s_inv * nu)[0];
         if d2 > gate {
             return Some(Update::Gated(d2));
         }
-        let h = Self::h_small(&pr);
+        let h = Self::h_small(pr);
         self.correct(
             &self.indices(k),
             &DMatrix::from_column_slice(2, 13, h.as_slice()),
@@ -247,39 +266,8 @@ impl LocalMap {
         h: &DMatrix<f64>,
         sigma: f64,
     ) -> DMatrix<f64> {
-        let k = idx.len();
-        let pss = DMatrix::from_fn(k, k, |a, b| self.p[(idx[a], idx[b])]);
+        let pss = self.cov_block(idx);
         h * pss * h.transpose() + DMatrix::identity(h.nrows(), h.nrows()) * (sigma * sigma)
-    }
-
-    /// The EKF correction by innovation `nu` with inverse innovation covariance `s_inv`, for
-    /// a measurement whose Jacobian `h` (m x k) has non-zero columns only at `idx`.
-    pub(crate) fn correct(
-        &mut self,
-        idx: &[usize],
-        h: &DMatrix<f64>,
-        nu: &DVector<f64>,
-        s_inv: &DMatrix<f64>,
-    ) {
-        let n = self.x.len();
-        let m = h.nrows();
-        // P Hᵀ (n x m) from the k columns.
-        let mut pht = DMatrix::zeros(n, m);
-        for r in 0..n {
-            for c in 0..m {
-                pht[(r, c)] = idx
-                    .iter()
-                    .enumerate()
-                    .map(|(i, &col)| self.p[(r, col)] * h[(c, i)])
-                    .sum();
-            }
-        }
-        let gain = &pht * s_inv;
-        self.x += &gain * nu;
-        // P ← P - K (P Hᵀ)ᵀ, in place (the caller symmetrizes once per frame).
-        self.p.gemm(-1.0, &gain, &pht.transpose(), 1.0);
-        let q = self.quaternion().normalize();
-        self.x.fixed_rows_mut::<4>(3).copy_from(&q);
     }
 
     /// Inserts a new landmark `y` at state index `at`, initialized from the robot pose by a
@@ -292,6 +280,7 @@ impl LocalMap {
         jr: &DMatrix<f64>,
         noise: &DMatrix<f64>,
     ) {
+        self.flush();
         let n = self.x.len();
         let m = y.len();
         let cross = jr * self.p.view((0, 0), (7, n)); // m x n
@@ -316,6 +305,7 @@ impl LocalMap {
 
     /// Removes the state block of `len` entries at `start`.
     pub(crate) fn remove_block(&mut self, start: usize, len: usize) {
+        self.flush();
         self.x = self.x.clone().remove_rows(start, len);
         self.p = self
             .p
@@ -362,16 +352,18 @@ impl LocalMap {
         self.points.len() - 1
     }
 
-    /// Makes the covariance exactly symmetric again (rounding in the updates drifts it).
+    /// Applies the pending updates and makes the covariance exactly symmetric (the frame's
+    /// updates leave its lower triangle mirrored; otherwise the two halves are averaged).
     pub fn symmetrize(&mut self) {
-        let n = self.p.nrows();
-        for r in 0..n {
-            for c in r + 1..n {
-                let v = 0.5 * (self.p[(r, c)] + self.p[(c, r)]);
-                self.p[(r, c)] = v;
-                self.p[(c, r)] = v;
-            }
+        if self.pending.cols > 0 {
+            self.flush();
+            return;
         }
+        deferred::for_each_below_diagonal(&mut self.p, |p, r, c| {
+            let v = 0.5 * (p[(r, c)] + p[(c, r)]);
+            p[(r, c)] = v;
+            p[(c, r)] = v;
+        });
     }
 
     /// Removes point `k` from the state.

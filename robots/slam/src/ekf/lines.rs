@@ -306,12 +306,12 @@ impl LocalMap {
         let (_, n, v) = apl::parts(&a);
         let (nn, vn) = (n.norm(), v.norm());
         let start = self.line_start() + 9 * j + 3;
-        let c = self.p.view((start, start), (6, 6));
+        let c = self.cov_block(&std::array::from_fn::<usize, 6, _>(|i| start + i));
         // ln d = ln |n| - ln |v|.
         let mut g = DVector::zeros(6);
         g.rows_mut(0, 3).copy_from(&(n / (nn * nn)));
         g.rows_mut(3, 3).copy_from(&(-v / (vn * vn)));
-        let depth = (g.transpose() * c * &g)[0].max(0.0).sqrt();
+        let depth = (g.transpose() * &c * &g)[0].max(0.0).sqrt();
         // u = v / |v|: ∂u/∂v = (I - u uᵀ) / |v|.
         let u = v / vn;
         let du = (Matrix3::identity() - u * u.transpose()) / vn;

@@ -106,7 +106,8 @@ fn a_new_point_is_correlated_with_the_robot_and_updates_shrink_uncertainty() {
     );
     let (_, z) = seen(&s, &m.pose(), &target);
     assert_eq!(m.update(&s, k, &z, 1.0, 9.21), Some(Update::Accepted));
-    assert!(m.p[(12, 12)] < before, "{} vs {before}", m.p[(12, 12)]);
+    let after = m.covariance()[(12, 12)];
+    assert!(after < before, "{after} vs {before}");
     // A wild measurement is gated.
     assert!(matches!(
         m.update(&s, k, &(z + Vector2::new(80.0, 0.0)), 1.0, 9.21),
@@ -297,4 +298,91 @@ fn robot_pose_nees_with_points_and_lines_is_within_its_95_percent_bound() {
         (lo..=hi).contains(&average),
         "average NEES {average:.2} outside [{lo:.2}, {hi:.2}]"
     );
+}
+
+/// Two frames of point and line updates, some gated, on a 40-landmark map: the deferred
+/// covariance (one blocked product per frame) against the same updates with the covariance
+/// brought up to date after each one (the textbook sequential filter).
+#[test]
+fn deferred_updates_reproduce_the_sequential_filter() {
+    use crate::lines::LinePrior;
+    let s = forward_sensor();
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(17);
+    let mut map = LocalMap::new();
+    map.p = DMatrix::from_diagonal(&DVector::from_element(7, 1e-4));
+    for k in 0..32 {
+        let px = Vector2::new(rng.random_range(20.0..620.0), rng.random_range(20.0..460.0));
+        map.add_point(&s, &px, 1.0, 0.1, 0.3, k);
+    }
+    let segment = |k: usize| {
+        let a = Vector2::new(60.0 + (k * 131 % 400) as f64, 60.0 + (k * 89 % 300) as f64);
+        (a, a + Vector2::new(120.0, 40.0 + (k * 37 % 80) as f64))
+    };
+    for k in 0..8 {
+        let (a, b) = segment(k);
+        map.add_line(&s, &a, &b, 1.0, &LinePrior::seed(), 100 + k as u64);
+    }
+    let (mut deferred, mut sequential) = (map.clone(), map);
+    let mut outcomes = (Vec::new(), Vec::new());
+    for frame in 0..2 {
+        let motion = Isometry3::translation(0.05, 0.01 * frame as f64, 0.0);
+        let noise = Matrix6::from_diagonal_element(1e-5);
+        deferred.predict(&motion, &noise);
+        sequential.predict(&motion, &noise);
+        for k in 0..deferred.points.len() {
+            let Some((pr, _)) = deferred.predict_point(&s, k, 1.0) else {
+                continue;
+            };
+            // Every fifth measurement is 40 px off: the gate must reject it in both.
+            let off = if k % 5 == 0 { 40.0 } else { 0.0 };
+            let z = pr.pixel
+                + Vector2::new(
+                    rng.random_range(-1.5..1.5) + off,
+                    rng.random_range(-1.5..1.5),
+                );
+            outcomes.0.push(deferred.update(&s, k, &z, 1.0, 9.21));
+            outcomes.1.push(sequential.update(&s, k, &z, 1.0, 9.21));
+            sequential.flush();
+        }
+        for j in 0..deferred.lines.len() {
+            let (a, b) = segment(j);
+            let shift = Vector2::new(0.0, 0.3 * (frame + 1) as f64);
+            outcomes
+                .0
+                .push(deferred.update_line(&s, j, &(a + shift), &b, 1.0, 9.21));
+            outcomes
+                .1
+                .push(sequential.update_line(&s, j, &(a + shift), &b, 1.0, 9.21));
+            sequential.flush();
+        }
+        deferred.symmetrize();
+        sequential.symmetrize();
+    }
+    let accepted = outcomes
+        .0
+        .iter()
+        .filter(|o| **o == Some(Update::Accepted))
+        .count();
+    assert!(
+        accepted >= 40,
+        "{accepted} updates accepted: the test must exercise updates"
+    );
+    assert!(outcomes
+        .0
+        .iter()
+        .any(|o| matches!(o, Some(Update::Gated(_)))));
+    // Same decisions; gated distances equal to rounding.
+    for (a, b) in outcomes.0.iter().zip(&outcomes.1) {
+        match (a, b) {
+            (Some(Update::Gated(x)), Some(Update::Gated(y))) => assert!((x - y).abs() < 1e-9 * x),
+            _ => assert_eq!(a, b),
+        }
+    }
+    let dx = (&deferred.x - &sequential.x).amax();
+    assert!(dx < 1e-9 * sequential.x.amax(), "state differs by {dx}");
+    let scale = sequential.covariance().amax();
+    let dp = (deferred.covariance() - sequential.covariance()).amax();
+    assert!(dp < 1e-9 * scale, "covariance differs by {dp} of {scale}");
+    let p = deferred.covariance();
+    assert_eq!(p, &p.transpose(), "exactly symmetric");
 }
