@@ -212,9 +212,9 @@ pub struct Rendezvous {
     pub other: String,
     /// `self_from_other`: the other robot's body pose in this robot's body frame.
     pub relative: Pose,
-    /// Standard deviation of the relative position, metres.
+    /// Standard deviation of the relative position, metres (each axis).
     pub sigma_m: f64,
-    /// Standard deviation of the relative yaw, radians.
+    /// Standard deviation of the relative attitude, radians (each axis).
     pub sigma_rad: f64,
 }
 
@@ -251,7 +251,10 @@ pub struct Image {
     pub width: u32,
     /// Height, pixels.
     pub height: u32,
-    /// RGB, 8 bits per channel, row-major from the top-left pixel.
+    /// RGB, 8 bits per channel, row-major from the top-left pixel. Encoded as bytes: the
+    /// same postcard encoding as a sequence of `u8`, written in one copy rather than one
+    /// serializer call per byte.
+    #[serde(with = "serde_bytes")]
     pub rgb: Vec<u8>,
 }
 
@@ -353,5 +356,36 @@ mod tests {
         assert!(!grid.is_free(-1, 0));
         assert!(grid.is_free(3, 2));
         assert!(!grid.is_free(4, 2));
+    }
+
+    #[test]
+    fn images_encode_their_bytes_as_a_sequence_of_u8_would() {
+        // The run digest hashes postcard encodings: `serde_bytes` must not change them.
+        #[derive(Serialize)]
+        struct Plain {
+            stamp_ns: u64,
+            sensor: String,
+            width: u32,
+            height: u32,
+            rgb: Vec<u8>,
+        }
+        let rgb: Vec<u8> = (0..300u32).map(|i| (i * 7 % 256) as u8).collect();
+        let image = Image {
+            stamp_ns: 12,
+            sensor: "cam".into(),
+            width: 10,
+            height: 10,
+            rgb: rgb.clone(),
+        };
+        let plain = Plain {
+            stamp_ns: 12,
+            sensor: "cam".into(),
+            width: 10,
+            height: 10,
+            rgb,
+        };
+        let encoded = postcard::to_stdvec(&image).unwrap();
+        assert_eq!(encoded, postcard::to_stdvec(&plain).unwrap());
+        assert_eq!(postcard::from_bytes::<Image>(&encoded).unwrap(), image);
     }
 }

@@ -17,5 +17,5 @@ pub mod files;
 mod streams;
 
 pub use clock::{SimClock, Tick};
-pub use digest::RunDigest;
+pub use digest::{PayloadHasher, RunDigest};
 pub use streams::{SimRng, Streams};

@@ -15,13 +15,14 @@
 use hetsim_core::{SimClock, SimRng, Streams};
 use hetsim_msgs::{pose_from_xyz_rpy, Image, Pose};
 use hetsim_physics::Physics;
+use hetsim_render::Frame;
 use hetsim_render::{
     mount_to_optical, AdapterSummary, CameraView, Intrinsics, RenderError, RenderOptions, Renderer,
     RobotDraw, RobotPart,
 };
 use hetsim_scene::{DriveKind, Scenario, Sensor};
 use nalgebra::Isometry3;
-use rand_distr::{Distribution, StandardNormal};
+use rayon::prelude::*;
 
 enum Model {
     /// `render`: the intrinsics actually rendered (padded beyond the image when distortion
@@ -46,8 +47,9 @@ struct Rig {
     period: u64,
     intrinsics: Intrinsics,
     body_from_mount: Pose,
-    noise: f64,
-    gain: f64,
+    /// Pixel noise, `None` for a noiseless camera.
+    noise: Option<PixelNoise>,
+    gain: f32,
     model: Model,
     rng: SimRng,
 }
@@ -158,8 +160,8 @@ impl Cameras {
                             intrinsics.as_ref(),
                         ),
                         body_from_mount: mount,
-                        noise: *pixel_noise_sigma,
-                        gain: *gain,
+                        noise: pixel_noise(*pixel_noise_sigma),
+                        gain: *gain as f32,
                         model: pinhole(
                             hetsim_render::intrinsics_of(
                                 *width_px,
@@ -196,8 +198,8 @@ impl Cameras {
                                 ),
                                 body_from_mount: mount
                                     * pose_from_xyz_rpy([0.0, offset, 0.0], [0.0; 3]),
-                                noise: *pixel_noise_sigma,
-                                gain: *gain,
+                                noise: pixel_noise(*pixel_noise_sigma),
+                                gain: *gain as f32,
                                 model: pinhole(
                                     hetsim_render::intrinsics_of(
                                         *width_px,
@@ -232,7 +234,7 @@ impl Cameras {
                                 v0: 0.0,
                             },
                             body_from_mount: mount,
-                            noise: 0.0,
+                            noise: None,
                             gain: 1.0,
                             model: {
                                 let face = Intrinsics::from_hfov(face_px, face_px, 90.0);
@@ -360,77 +362,110 @@ impl Cameras {
             spans.push((k, start, views.len(), world_from_mount));
         }
         let frames = self.renderer.render(&views);
-        let mut shots = Vec::new();
-        for (k, start, end, world_from_mount) in spans {
-            let rig = &mut self.rigs[k];
-            // The colour to post-process (RGBA straight from the renderer, or RGB after
-            // resampling) and its depth.
-            let resampled;
-            let (src, stride, depth) = match &rig.model {
-                Model::Pinhole {
-                    distortion: None, ..
-                } => (&frames[start].rgba, 4, frames[start].depth_m.clone()),
-                Model::Pinhole {
-                    distortion: Some(d),
-                    render,
-                } => {
-                    let (rgb, depth) = distort(&frames[start], &rig.intrinsics, render, *d);
-                    resampled = rgb;
-                    (&resampled, 3, depth)
-                }
-                Model::Omni { lookup, .. } => {
-                    let (rgb, depth) = panorama(&frames[start..end], lookup);
-                    resampled = rgb;
-                    (&resampled, 3, depth)
-                }
-            };
-            let mut rgb = Vec::with_capacity(src.len() / stride * 3);
-            for px in src.chunks_exact(stride) {
-                for &c in &px[..3] {
-                    let mut v = c as f64 * rig.gain;
-                    if rig.noise > 0.0 {
-                        let n: f64 = StandardNormal.sample(&mut rig.rng);
-                        v += n * rig.noise;
-                    }
-                    rgb.push(v.round().clamp(0.0, 255.0) as u8);
-                }
-            }
-            let body_from_optical = Isometry3::from_parts(
-                rig.body_from_mount.translation,
-                rig.body_from_mount.rotation * mount_to_optical(),
-            );
-            let distortion = match &rig.model {
-                Model::Pinhole {
-                    distortion: Some(d),
-                    ..
-                } => *d,
-                _ => [0.0, 0.0],
-            };
-            let rate_hz = 1e9 / (rig.period as f64 * self.dt_ns as f64);
-            shots.push(Shot {
-                robot: rig.robot,
-                topic: rig.topic.clone(),
-                image: Image {
-                    stamp_ns,
-                    sensor: rig.sensor.clone(),
-                    width: rig.intrinsics.width,
-                    height: rig.intrinsics.height,
-                    rgb,
-                },
-                depth_m: depth,
-                world_from_optical: Isometry3::from_parts(
-                    world_from_mount.translation,
-                    world_from_mount.rotation * mount_to_optical(),
-                ),
-                intrinsics: rig.intrinsics,
-                body_from_optical,
-                distortion,
-                rate_hz,
-            });
-        }
-        shots
+        // Post-processing is per camera (its own noise stream), so the cameras run in
+        // parallel; the shots come back in camera order.
+        let dt_ns = self.dt_ns;
+        let mut spans = spans.into_iter().peekable();
+        let jobs: Vec<_> = self
+            .rigs
+            .iter_mut()
+            .enumerate()
+            .filter_map(|(k, rig)| {
+                let (_, start, end, world_from_mount) = spans.next_if(|s| s.0 == k)?;
+                Some((rig, &frames[start..end], world_from_mount))
+            })
+            .collect();
+        jobs.into_par_iter()
+            .map(|(rig, frames, world_from_mount)| {
+                rig.shot(frames, world_from_mount, stamp_ns, dt_ns)
+            })
+            .collect()
     }
 }
+
+impl Rig {
+    /// The camera model after rendering: distortion or panorama resampling, gain and noise.
+    fn shot(
+        &mut self,
+        frames: &[Frame],
+        world_from_mount: Pose,
+        stamp_ns: u64,
+        dt_ns: u64,
+    ) -> Shot {
+        // The colour to post-process (RGBA straight from the renderer, or RGB after
+        // resampling) and its depth.
+        let resampled;
+        let (src, stride, depth) = match &self.model {
+            Model::Pinhole {
+                distortion: None, ..
+            } => (&frames[0].rgba, 4, frames[0].depth_m.clone()),
+            Model::Pinhole {
+                distortion: Some(d),
+                render,
+            } => {
+                let (rgb, depth) = distort(&frames[0], &self.intrinsics, render, *d);
+                resampled = rgb;
+                (&resampled, 3, depth)
+            }
+            Model::Omni { lookup, .. } => {
+                let (rgb, depth) = panorama(frames, lookup);
+                resampled = rgb;
+                (&resampled, 3, depth)
+            }
+        };
+        let rgb = match &self.noise {
+            Some(noise) => noise.apply(src, stride, self.gain, &mut self.rng),
+            None => src
+                .chunks_exact(stride)
+                .flat_map(|px| {
+                    px[..3]
+                        .iter()
+                        .map(|&c| noise::quantize(c as f32 * self.gain))
+                })
+                .collect(),
+        };
+        let body_from_optical = Isometry3::from_parts(
+            self.body_from_mount.translation,
+            self.body_from_mount.rotation * mount_to_optical(),
+        );
+        let distortion = match &self.model {
+            Model::Pinhole {
+                distortion: Some(d),
+                ..
+            } => *d,
+            _ => [0.0, 0.0],
+        };
+        let rate_hz = 1e9 / (self.period as f64 * dt_ns as f64);
+        Shot {
+            robot: self.robot,
+            topic: self.topic.clone(),
+            image: Image {
+                stamp_ns,
+                sensor: self.sensor.clone(),
+                width: self.intrinsics.width,
+                height: self.intrinsics.height,
+                rgb,
+            },
+            depth_m: depth,
+            world_from_optical: Isometry3::from_parts(
+                world_from_mount.translation,
+                world_from_mount.rotation * mount_to_optical(),
+            ),
+            intrinsics: self.intrinsics,
+            body_from_optical,
+            distortion,
+            rate_hz,
+        }
+    }
+}
+
+/// A camera's noise model from its robot file's `pixel_noise_sigma`.
+fn pixel_noise(sigma: f64) -> Option<PixelNoise> {
+    (sigma > 0.0).then(|| PixelNoise::new(sigma))
+}
+
+mod noise;
+use noise::PixelNoise;
 
 mod optics;
 use optics::{distort, panorama, panorama_lookup, pinhole, CUBE};

@@ -5,7 +5,7 @@ use crate::comms::Comms;
 use crate::frames::FrameDump;
 use crate::output::{RobotOutcome, RunOutput};
 use crate::record::Recorder;
-use hetsim_core::{RunDigest, Streams};
+use hetsim_core::{PayloadHasher, RunDigest, Streams};
 use hetsim_msgs::{pose_from_xyz_rpy, Command, Pose, PoseStamped, RobotStack, SensorMsg};
 use hetsim_physics::Physics;
 use hetsim_render::{RenderError, RenderOptions};
@@ -81,6 +81,17 @@ struct Post<'a> {
 impl Post<'_> {
     fn deliver(&mut self, robot: usize, topic: &str, msg: SensorMsg, mount: Option<&Pose>) {
         self.digest.record(topic, &encode(&msg));
+        self.file(robot, topic, msg, mount);
+    }
+
+    /// [`Post::deliver`] for a message whose encoding was hashed beforehand (an image).
+    fn deliver_hashed(&mut self, robot: usize, topic: &str, msg: SensorMsg, hash: (u64, [u8; 32])) {
+        self.digest.record_hashed(topic, hash);
+        self.file(robot, topic, msg, None);
+    }
+
+    /// The recording, the counts and the inbox.
+    fn file(&mut self, robot: usize, topic: &str, msg: SensorMsg, mount: Option<&Pose>) {
         if let Some(r) = self.recorder.as_deref_mut() {
             r.sensor(&self.names[robot], topic, mount, &msg);
         }
@@ -292,13 +303,19 @@ fn run_on_worker(
                 dump.as_ref()
                     .is_some_and(|d| d.wants(topic) && d.in_window(stamp))
             };
+            let mut images = Vec::new();
             for shot in cams.capture(&physics, tick, stamp, &wanted, &depth) {
                 if let Some(d) = dump.as_deref_mut() {
                     if d.wants(&shot.topic) && d.in_window(stamp) {
                         d.write(&shot)?;
                     }
                 }
-                post.deliver(shot.robot, &shot.topic, SensorMsg::Image(shot.image), None);
+                images.push((shot.robot, shot.topic, SensorMsg::Image(shot.image)));
+            }
+            // Megabytes each: hashed in parallel, then recorded in camera order.
+            let hashes: Vec<_> = images.par_iter().map(|(_, _, m)| hash_encoded(m)).collect();
+            for ((robot, topic, msg), hash) in images.into_iter().zip(hashes) {
+                post.deliver_hashed(robot, &topic, msg, hash);
             }
         }
         // 5. radio deliveries
@@ -352,6 +369,47 @@ fn run_on_worker(
     })
 }
 
+/// The postcard encoding's length and SHA-256, written straight into the hasher.
+fn hash_encoded<T: Serialize>(value: &T) -> (u64, [u8; 32]) {
+    struct Hashing(PayloadHasher);
+    impl postcard::ser_flavors::Flavor for Hashing {
+        type Output = PayloadHasher;
+        fn try_push(&mut self, data: u8) -> postcard::Result<()> {
+            self.0.write(&[data]);
+            Ok(())
+        }
+        fn try_extend(&mut self, data: &[u8]) -> postcard::Result<()> {
+            self.0.write(data);
+            Ok(())
+        }
+        fn finalize(self) -> postcard::Result<PayloadHasher> {
+            Ok(self.0)
+        }
+    }
+    postcard::serialize_with_flavor(value, Hashing(PayloadHasher::default()))
+        .expect("plain-data messages always encode")
+        .finish()
+}
+
 fn encode<T: Serialize>(value: &T) -> Vec<u8> {
     postcard::to_stdvec(value).expect("plain-data messages always encode")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn hashing_while_encoding_is_hashing_the_encoding() {
+        let msg = SensorMsg::Image(hetsim_msgs::Image {
+            stamp_ns: 7,
+            sensor: "stereo/left".into(),
+            width: 3,
+            height: 2,
+            rgb: (0..18).collect(),
+        });
+        let mut direct = PayloadHasher::default();
+        direct.write(&encode(&msg));
+        assert_eq!(hash_encoded(&msg), direct.finish());
+    }
 }
