@@ -36,10 +36,13 @@ struct Sequence {
     segments: usize,
     segment_depth_errors: Vec<f64>,
     counters: std::collections::BTreeMap<String, u64>,
+    /// Everything the stack published, serialized.
+    bytes: Vec<u8>,
 }
 
-/// The SLAM stack over a rendered rover sequence of `frames` frames, with lines or not.
-fn run_sequence(frames: usize, lines: bool) -> Sequence {
+/// The SLAM stack over a rendered rover sequence of `frames` frames, with lines or not, and
+/// with the true pose in every inbox or never (robot software must not read it).
+fn run_sequence(frames: usize, lines: bool, truth_in_inbox: bool) -> Sequence {
     let s = load_scenario(
         &repo().join("scenarios/village.toml"),
         &LoadOptions::default(),
@@ -96,19 +99,24 @@ fn run_sequence(frames: usize, lines: bool) -> Sequence {
             })
         };
         let mut inbox = vec![img(0, "left"), img(1, "right")];
-        if k == 0 {
+        if truth_in_inbox {
             inbox.insert(0, SensorMsg::TruthPose(PoseStamped { stamp_ns, pose: b }));
         }
         stack.step(stamp_ns, &inbox);
         last_depth = f[0].depth().to_vec();
     }
-    let truth = body(frames).translation.vector;
+    // The stack estimates in its own frame, its pose at the first pair; the test places that
+    // frame in the world as the evaluation does.
+    let world_from_frame = body(0);
+    let truth = (world_from_frame.inverse() * body(frames))
+        .translation
+        .vector;
     let points = stack.map_points();
     assert!(points.len() >= 18, "{} mapped points", points.len());
     assert!(points.iter().all(|(_, p)| p.iter().all(|v| v.is_finite())));
     // Points along each mapped segment against the rendered depth: the nearest surface in a
     // 7 x 7 window (a segment lies on an edge, where the depth jumps).
-    let world_from_camera = body(frames) * body_from_camera;
+    let world_from_camera = world_from_frame.inverse() * body(frames) * body_from_camera;
     let segments = stack.map_segments();
     let mut segment_depth_errors = Vec::new();
     for (_, [a, b]) in &segments {
@@ -151,13 +159,27 @@ fn run_sequence(frames: usize, lines: bool) -> Sequence {
         segments: segments.len(),
         segment_depth_errors,
         counters: stack.report().unwrap().counters,
+        bytes: serde_json::to_vec(&stack.artifacts()).unwrap(),
     }
+}
+
+/// Robot software reads no truth: the SLAM stack publishes the same bytes whether or not
+/// the true pose is in its inbox.
+#[test]
+fn the_slam_stack_computes_the_same_bytes_with_the_truth_withheld() {
+    let with = run_sequence(12, true, true);
+    let without = run_sequence(12, true, false);
+    assert!(with.submaps >= 1 && with.bytes.len() > 1000);
+    assert!(
+        with.bytes == without.bytes,
+        "the truth changed the SLAM's output"
+    );
 }
 
 #[test]
 fn local_slam_tracks_a_rendered_rover_sequence_no_worse_than_vo() {
-    let q = run_sequence(60, true);
-    let points_only = run_sequence(60, false);
+    let q = run_sequence(60, true, false);
+    let points_only = run_sequence(60, false, false);
     let mut errors = q.segment_depth_errors.clone();
     errors.sort_by(f64::total_cmp);
     eprintln!(

@@ -8,9 +8,16 @@
 //! travel. A robot rebuilds its joint [`Graph`] when its part changes or a part arrives, and
 //! optimizes it (Gauss-Newton over the whole graph: the team's graphs are small).
 //!
-//! Gauge: every robot's first origin is its start pose, held fixed (the seed takes Dala's first
-//! map as the world frame and Ressac starts above Dala; here each robot is given its start
-//! pose, and the events correct the drift after it).
+//! Frames and gauge (seed Section V: Dala's first map is the world frame). Every robot starts
+//! in its own frame: its first origin is the identity. The team names a reference robot whose
+//! first origin is the team's frame. The joint graph falls into connected components (parts
+//! joined by resolved event links); each is held fixed at one first origin, the reference's
+//! where the component holds it, else that of its first part (this robot's own, or the
+//! earliest named). A robot therefore knows nothing of another's frame until an event links
+//! them; when one does, the newly joined part's estimates are moved rigidly into the
+//! component's frame through that link (they may be off by any rotation, 180 degrees of yaw
+//! included) before Gauss-Newton refines them. [`Global::frame`] names the robot whose first
+//! origin this robot's estimates are expressed in.
 
 pub use crate::graph::relative_info;
 use crate::graph::{Edge, Graph, Prior};
@@ -53,6 +60,9 @@ pub struct Fix {
 pub struct Share {
     /// The owner.
     pub robot: String,
+    /// The robot whose first origin is the frame of `poses` (the owner's own until an event
+    /// links it to the reference's component).
+    pub frame: String,
     /// Stamps of its origins, nanoseconds.
     pub stamps: Vec<u64>,
     /// Its current estimates of its origins (initial values for the receiver).
@@ -88,22 +98,36 @@ pub struct Global {
     keys: Vec<(String, usize)>,
     /// Event links whose other origin is not known here yet.
     pub unresolved: usize,
+    /// The team's reference robot (its first origin is the team's frame).
+    reference: String,
+    /// The frame each part's current node values are in, by robot.
+    frames: BTreeMap<String, String>,
 }
 
 impl Global {
-    /// The global level of robot `robot`, whose first origin is `start` at `stamp_ns`.
-    pub fn new(robot: &str, start: Isometry3<f64>, stamp_ns: u64) -> Self {
+    /// The global level of robot `robot`, whose first origin (the identity of its own frame)
+    /// is its pose at `stamp_ns`, in a team whose frame is `reference`'s first origin.
+    pub fn new(robot: &str, reference: &str, stamp_ns: u64) -> Self {
         let mut g = Self {
             own: Share {
                 robot: robot.to_string(),
+                frame: robot.to_string(),
                 ..Share::default()
             },
+            reference: reference.to_string(),
             ..Self::default()
         };
+        g.frames.insert(robot.to_string(), robot.to_string());
         g.own.stamps.push(stamp_ns);
-        g.own.poses.push(start);
+        g.own.poses.push(Isometry3::identity());
         g.rebuild();
         g
+    }
+
+    /// The robot whose first origin is the frame of this robot's estimates: its own until an
+    /// event joins it to another robot's component.
+    pub fn frame(&self) -> &str {
+        &self.own.frame
     }
 
     /// Number of this robot's origins.
@@ -181,7 +205,10 @@ impl Global {
         m[..self.len()].to_vec()
     }
 
-    /// Rebuilds the joint graph from the parts, starting from the current estimates.
+    /// Rebuilds the joint graph from the parts, starting from the current estimates: a part
+    /// already in the graph keeps its node values (its new origins chained on by their
+    /// measured transforms), a new one takes the values it was sent. Then each component is
+    /// anchored and its parts moved into its frame ([`Global::align`]).
     fn rebuild(&mut self) {
         let current: BTreeMap<(String, usize), Isometry3<f64>> = self
             .keys
@@ -195,14 +222,26 @@ impl Global {
         let parts: Vec<&Share> = std::iter::once(&self.own)
             .chain(self.others.values())
             .collect();
+        // The frame each part's values are in.
+        let mut frames = Vec::new();
         for part in &parts {
+            let known = current.contains_key(&(part.robot.clone(), 0));
+            let mut previous: Option<Isometry3<f64>> = None;
             for (k, pose) in part.poses.iter().enumerate() {
                 let key = (part.robot.clone(), k);
-                let at = *current.get(&key).unwrap_or(pose);
+                let at = match (known, current.get(&key), previous) {
+                    (true, Some(x), _) => *x,
+                    (true, None, Some(p)) => p * part.chain[k - 1].0,
+                    _ => *pose,
+                };
+                previous = Some(at);
                 index.insert(key.clone(), graph.add_node(at));
                 keys.push(key);
             }
-            graph.anchors.push(index[&(part.robot.clone(), 0)]);
+            frames.push(match self.frames.get(&part.robot) {
+                Some(f) if known => f.clone(),
+                _ => part.frame.clone(),
+            });
         }
         let mut unresolved = 0;
         for part in &parts {
@@ -239,10 +278,113 @@ impl Global {
                 }
             }
         }
+        let robots: Vec<String> = parts.iter().map(|p| p.robot.clone()).collect();
+        let part_of: Vec<usize> = keys
+            .iter()
+            .map(|(r, _)| robots.iter().position(|x| x == r).expect("a part's key"))
+            .collect();
+        let firsts: Vec<usize> = robots.iter().map(|r| index[&(r.clone(), 0)]).collect();
+        let frames = align(
+            &mut graph,
+            &part_of,
+            &firsts,
+            &robots,
+            frames,
+            &self.reference,
+        );
+        self.frames = robots.into_iter().zip(frames).collect();
         self.graph = graph;
         self.keys = keys;
         self.unresolved = unresolved;
+        self.own.frame = self.frames[&self.own.robot].clone();
+        for k in 0..self.own.poses.len() {
+            self.own.poses[k] = self.graph.nodes[k];
+        }
     }
+}
+
+/// Anchors each connected component of `graph` and moves its parts into its frame; returns
+/// the frame of each part's values afterwards.
+///
+/// `part_of[n]` is node `n`'s part, `firsts[p]` part `p`'s first node, `frames[p]` the frame
+/// its values are in now. A component's gauge is the reference's part if it holds it, else
+/// its first part. Going out from the gauge over event edges (breadth first, in edge order),
+/// a part reached whose values are in another frame is moved rigidly so that the edge it was
+/// reached by holds exactly: `x_to = x_from z`.
+fn align(
+    graph: &mut Graph,
+    part_of: &[usize],
+    firsts: &[usize],
+    robots: &[String],
+    mut frames: Vec<String>,
+    reference: &str,
+) -> Vec<String> {
+    let n = robots.len();
+    // Components of parts, by union-find over the edges between parts.
+    let mut parent: Vec<usize> = (0..n).collect();
+    fn root(parent: &mut [usize], mut i: usize) -> usize {
+        while parent[i] != i {
+            parent[i] = parent[parent[i]];
+            i = parent[i];
+        }
+        i
+    }
+    for e in &graph.edges {
+        let (a, b) = (
+            root(&mut parent, part_of[e.from]),
+            root(&mut parent, part_of[e.to]),
+        );
+        if a != b {
+            parent[a.max(b)] = a.min(b);
+        }
+    }
+    let mut placed = vec![false; n];
+    graph.anchors.clear();
+    for p in 0..n {
+        if root(&mut parent, p) != p {
+            continue;
+        }
+        let members: Vec<usize> = (0..n).filter(|&q| root(&mut parent, q) == p).collect();
+        let gauge = members
+            .iter()
+            .copied()
+            .find(|&q| robots[q] == reference)
+            .unwrap_or(p);
+        graph.anchors.push(firsts[gauge]);
+        let frame = frames[gauge].clone();
+        placed[gauge] = true;
+        let mut progress = true;
+        while progress {
+            progress = false;
+            for e in graph.edges.clone() {
+                let (pf, pt) = (part_of[e.from], part_of[e.to]);
+                if placed[pf] == placed[pt] || root(&mut parent, pf) != p {
+                    continue;
+                }
+                // The part reached, and where the edge puts the node it was reached at.
+                let (part, node, predicted) = if placed[pf] {
+                    (pt, e.to, graph.nodes[e.from] * e.z)
+                } else {
+                    (pf, e.from, graph.nodes[e.to] * e.z.inverse())
+                };
+                if frames[part] != frame {
+                    let moved = predicted * graph.nodes[node].inverse();
+                    for (x, _) in graph
+                        .nodes
+                        .iter_mut()
+                        .zip(part_of)
+                        .filter(|(_, q)| **q == part)
+                    {
+                        *x = moved * *x;
+                    }
+                    frames[part] = frame.clone();
+                }
+                placed[part] = true;
+                progress = true;
+            }
+        }
+    }
+    frames
 }
 
 #[cfg(test)]
@@ -258,15 +400,19 @@ mod tests {
         )
     }
 
-    /// Two robots drive; B's chain has a biased odometry. A link from B's last origin to A's
-    /// origin, sent to A over the "radio" (a serialized share) and known to B, pulls B's end
-    /// back on both robots' graphs, which agree.
+    /// Two robots drive, each in its own frame; B's chain has a biased odometry, and B starts
+    /// turned by 172 degrees from A. A link from B's last origin to A's origin, known to B
+    /// and sent to A over the "radio" (a serialized share), places B in A's frame on both
+    /// robots' graphs and pulls B's end back; both graphs agree.
     #[test]
-    fn a_link_between_two_robots_corrects_the_drifting_one_on_both_sides() {
+    fn a_link_places_the_other_robot_in_the_references_frame_and_corrects_its_drift() {
         let start_a = Isometry3::identity();
-        let start_b = step(0.0, 0.3);
-        let mut a = Global::new("a", start_a, 0);
-        let mut b = Global::new("b", start_b, 0);
+        let start_b = Isometry3::from_parts(
+            Translation3::new(3.0, -2.0, 0.5),
+            UnitQuaternion::from_euler_angles(0.0, 0.0, 3.0),
+        );
+        let mut a = Global::new("a", "a", 0);
+        let mut b = Global::new("b", "a", 0);
         let mut truth_b = start_b;
         let mut truth_a = vec![start_a];
         for k in 1..=10u64 {
@@ -278,7 +424,13 @@ mod tests {
             let biased = step(2.1, 0.06);
             b.push(k * 1000, biased, relative_info(0.1, 0.01));
         }
-        let before = (b.origin(10).translation.vector - truth_b.translation.vector).norm();
+        // Before any event B knows only its own frame: its first origin is the identity.
+        assert_eq!(b.frame(), "b");
+        assert_eq!(b.origin(0), Isometry3::identity());
+        let in_b = start_b.inverse() * truth_b;
+        let drift = (b.origin(10).translation.vector - in_b.translation.vector).norm();
+        assert!(drift > 1.0, "B drifted {drift} m in its own frame");
+        let own_chain = b.origin(0).inverse() * b.origin(10);
         let open_cov = b.own_covariances()[10];
         // B sees A's origin 4 from its last origin.
         let z =
@@ -292,26 +444,43 @@ mod tests {
             info: relative_info(0.05, 0.005),
         });
         assert_eq!(b.unresolved, 1, "A's origins are not known to B yet");
+        assert_eq!(b.frame(), "b");
+        // A hears of the link first: B's part arrives in B's frame and is moved into A's.
+        a.receive(serde_json::from_slice(&serde_json::to_vec(&b.own).unwrap()).unwrap());
+        a.optimize();
         let wire = serde_json::to_vec(&a.own).unwrap();
         b.receive(serde_json::from_slice(&wire).unwrap());
         assert_eq!(b.unresolved, 0);
         b.optimize();
+        assert_eq!(b.frame(), "a");
         let after = (b.origin(10).translation.vector - truth_b.translation.vector).norm();
         assert!(
-            after < before / 4.0,
-            "B's end error {before:.3} -> {after:.3} m"
+            after < drift / 4.0,
+            "B's end error {drift:.3} -> {after:.3} m"
         );
-        a.receive(serde_json::from_slice(&serde_json::to_vec(&b.own).unwrap()).unwrap());
-        a.optimize();
+        // B's start is found in A's frame, 172 degrees of yaw included, off by no more than
+        // its chain's drift (one link closes no loop): 10 x 0.01 rad of yaw, and over its
+        // 20 m at most 5 % + 0.1 rad of relative error, 3 m; and B's chain moved rigidly.
+        let start = b.origin(0).inverse() * start_b;
+        assert!(start.translation.vector.norm() < 3.0, "{start}");
+        assert!(start.rotation.angle() < 0.12, "{start}");
+        let chain = b.origin(0).inverse() * b.origin(10);
+        assert!((chain.translation.vector - own_chain.translation.vector).norm() < 1e-3);
         let b_on_a = a.graph.nodes[a.len() + 10];
         assert!((b_on_a.translation.vector - b.origin(10).translation.vector).norm() < 1e-3);
-        // A's own origins barely move (its chain is ten times more certain).
+        // A's own origins barely move (its chain is ten times more certain) and stay in its
+        // own frame.
+        assert_eq!(a.frame(), "a");
+        assert_eq!(a.origin(0), Isometry3::identity());
         assert!((a.origin(10).translation.vector - truth_a[10].translation.vector).norm() < 0.1);
-        // The marginal of B's last origin shrank below its open-loop one.
-        let c = b.own_covariances()[10];
+        // B's first origin is free now, and the marginal of its last shrank below the
+        // open-loop one.
+        let c = b.own_covariances();
+        assert!(c[0][(0, 0)] > 0.0, "B's first origin is estimated");
         assert!(
-            c[(0, 0)] + c[(1, 1)] < 0.1 * (open_cov[(0, 0)] + open_cov[(1, 1)]),
-            "{c}\n{open_cov}"
+            c[10][(0, 0)] + c[10][(1, 1)] < 0.1 * (open_cov[(0, 0)] + open_cov[(1, 1)]),
+            "{}\n{open_cov}",
+            c[10]
         );
     }
 
@@ -319,9 +488,9 @@ mod tests {
     /// the graph.
     #[test]
     fn a_link_to_an_unknown_origin_is_kept_unresolved() {
-        let mut a = Global::new("a", Isometry3::identity(), 0);
+        let mut a = Global::new("a", "a", 0);
         a.push(100, step(1.0, 0.0), relative_info(0.1, 0.01));
-        let mut b = Global::new("b", step(5.0, 0.0), 0);
+        let mut b = Global::new("b", "a", 0);
         b.link(Link {
             kind: "rendezvous".into(),
             node: 0,
@@ -334,5 +503,9 @@ mod tests {
         assert_eq!(b.unresolved, 1);
         assert_eq!(b.graph.edges.len(), 1, "A's chain only");
         b.optimize();
+        // Two components, each held at its own first origin; B stays in its own frame.
+        assert_eq!(b.graph.anchors, vec![0, 1]);
+        assert_eq!(b.frame(), "b");
+        assert_eq!(b.origin(0), Isometry3::identity());
     }
 }

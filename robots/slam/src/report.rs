@@ -11,22 +11,34 @@ pub const REPORT_ARTIFACT: &str = "slam/report";
 /// just before and just after the graph was optimized with it.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct SlamEvent {
-    /// `"gps"`, `"rendezvous"` or `"image_match"`.
+    /// `"rendezvous"` or `"image_match"`.
     pub kind: String,
     /// The frame at which it happened, nanoseconds.
     pub stamp_ns: u64,
     /// The other robot (empty for a GPS fix).
     pub other: String,
-    /// The robot's world pose estimate before.
+    /// The robot's pose estimate before, in the frame of `frame_before`.
     pub before: Pose,
-    /// And after.
+    /// And after, in the frame of `frame_after`.
     pub after: Pose,
+    /// The robot whose first origin is the frame of `before` (see [`SlamReport::frame`]).
+    pub frame_before: String,
+    /// And of `after`: an event that joins this robot to another's component changes it.
+    pub frame_after: String,
 }
 
 /// What a SLAM stack built, for the evaluation: sub-map origins with covariance, the
 /// covariance of every pose of its `slam` trajectory, and its events.
+///
+/// Frames: a robot's estimates are in the frame of some robot's first sub-map origin (its
+/// pose at its first stereo pair), never in the simulator's world, which robot software
+/// does not know. `vo` and `slam-open` are in the robot's own frame; the `slam` trajectory,
+/// the `map` and the origins in [`SlamReport::frame`]'s.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct SlamReport {
+    /// The robot whose first origin is the frame of the `slam` trajectory, the `map` and the
+    /// origins: the team's reference once an event has linked this robot to it, else its own.
+    pub frame: String,
     /// Its sub-map origins: stamp, optimized world pose, marginal covariance of the right
     /// perturbation `(δt, δθ)` (6 x 6, column-major).
     pub origins: Vec<(u64, Pose, Vec<f64>)>,

@@ -29,8 +29,6 @@
 //!
 //! 7. events (seed Section III) start a new sub-map at the frame they happen, link its origin,
 //!    and the team's graph ([`crate::global`]) is optimized:
-//!    * a GPS fix, once `gps_event_period_s` has passed since the last event, constrains the
-//!      origin's antenna position;
 //!    * a rendezvous (this robot's rendezvous sensor sees another robot; once per robot per
 //!      `rendezvous_period_s`) links the origin to the other robot's origin made at the same
 //!      stamp: both robots see each other and both start a sub-map then (a full rendezvous);
@@ -41,31 +39,38 @@
 //! 8. the robot's part of the graph goes to every robot it has met, over the radio, after each
 //!    event and every `share_period_s`; parts received are merged and the graph optimized.
 //!
-//! The first sub-map's origin is the true pose at the first pair (the seed's first map is its
-//! world frame). Every frame is kept as (sub-map, pose in it, its covariance), and written
-//! through the graph's optimized origins (`slam/<robot>.tum`) and through the origins
-//! compounded without events (`slam-open/<robot>.tum`, the open-loop estimate); the chained
-//! VO alone is `vo/<robot>.tum`. With `cooperative` off there are no events and no radio.
+//! Frames: the first sub-map's origin is the identity of the robot's own frame, its pose at
+//! the first pair; the robot reads no truth. The scenario's first robot (`reference_robot`,
+//! Dala in the village) is the team's frame, as in the seed; another robot's estimates move
+//! into it once an event links the two ([`crate::global`]). GPS fixes are not events: they
+//! are world positions, and no robot knows where its frame lies in the world (that would take
+//! a world-frame node in the graph; see the README's known gaps). Every frame is kept as
+//! (sub-map, pose in it, its covariance), and written through the graph's optimized origins
+//! (`slam/<robot>.tum`) and through the origins compounded without events
+//! (`slam-open/<robot>.tum`, the open-loop estimate); the chained VO alone is
+//! `vo/<robot>.tum`. With `cooperative` off there are no events and no radio.
 
 use crate::ekf::{LocalMap, Update};
-use crate::global::{relative_info, Fix, Global, Link, Share};
+use crate::global::{relative_info, Global, Link, Share};
 use crate::idp::Sensor;
 use crate::lines::LinePrior;
 use crate::report::{SlamEvent, SlamReport, REPORT_ARTIFACT};
 use hetsim_msgs::{
-    Artifact, ArtifactData, Command, Delivered, Image, ImageMatch, Outgoing, Pose, Rendezvous,
-    RobotStack, SensorMsg, StackStatus,
+    Artifact, ArtifactData, Delivered, Image, ImageMatch, Outgoing, Pose, Rendezvous, SensorMsg,
 };
-use hetsim_vision::harris::{detect, select_new, Corner};
-use hetsim_vision::matching::{search_ellipse, Patch};
+use hetsim_vision::harris::{select_new, Corner};
+use hetsim_vision::matching::{search_pyramid, Template};
 use hetsim_vision::segments::{self, Segment};
 use hetsim_vision::stereo::Bench;
 use hetsim_vision::vo::StereoVo;
 use hetsim_vision::Gray;
-use nalgebra::{Matrix3, Matrix6, Vector2, Vector3};
+use nalgebra::{Matrix6, Vector2, Vector3};
 use std::collections::BTreeMap;
 
 mod landmarks;
+
+mod pipeline;
+pub use pipeline::SlamStack;
 
 mod events;
 
@@ -73,7 +78,7 @@ mod events;
 pub const SHARE_TOPIC: &str = "slam/graph";
 
 /// Tuning of the local level.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct SlamParams {
     /// Initial inverse depth of a new point, m⁻¹ (seed: Dala 0.1, Ressac 0.025).
     pub rho_init: f64,
@@ -89,11 +94,9 @@ pub struct SlamParams {
     pub max_search_px: f64,
     /// Deletion: searched at least this often and found in fewer than half.
     pub min_searches: u32,
-    /// A GPS fix becomes an event when this long has passed since the last event, seconds
-    /// (`None`: GPS unused).
-    pub gps_event_period_s: Option<f64>,
-    /// The GPS antenna in the body frame, metres.
-    pub gps_offset: Vector3<f64>,
+    /// The team's reference robot, whose first sub-map is the team's frame (seed Section V:
+    /// Dala's); `None`: this robot's own.
+    pub reference_robot: Option<String>,
     /// Drift of a sub-map's relative transform as a fraction of its length (1σ per axis).
     pub edge_drift: f64,
     /// Events and the radio on (`false`: open loop, the chain of sub-maps only).
@@ -115,6 +118,10 @@ pub struct SlamParams {
     pub max_visible_lines: usize,
     /// Segments are detected every this many frames.
     pub line_detect_period: u32,
+    /// The scale segment detection works at (LSD's `scale`, 0.8 in its paper): 0.5 costs a
+    /// third of 0.8's time and still finds the `min_line_px` segments lines are made from;
+    /// the tracker then measures them at full resolution.
+    pub line_detect_scale: f64,
     /// A line's segment goes to the map output once its distance is known to this
     /// (relative standard deviation).
     pub line_output_spread: f64,
@@ -148,8 +155,7 @@ impl SlamParams {
             sigma_px: 1.0,
             max_search_px: 10.0,
             min_searches: 6,
-            gps_event_period_s: Some(30.0),
-            gps_offset: Vector3::zeros(),
+            reference_robot: None,
             edge_drift: 0.03,
             cooperative: true,
             rendezvous_period_s: 120.0,
@@ -160,30 +166,27 @@ impl SlamParams {
             min_line_px: 60.0,
             max_visible_lines: 10,
             line_detect_period: 5,
+            line_detect_scale: 0.5,
             line_output_spread: 0.2,
         }
     }
 }
 
 /// Pilot + stereo VO + local EKF sub-maps + the team's graph.
-pub struct SlamStack {
-    inner: Box<dyn RobotStack>,
+pub struct SlamCore {
     robot: String,
     params: SlamParams,
     vo: StereoVo,
-    stereo: String,
     sensor: Sensor,
     body_from_camera: Pose,
     map: LocalMap,
     /// Each point's patch, by id.
-    patches: BTreeMap<u64, Patch>,
+    patches: BTreeMap<u64, Template>,
     next_id: u64,
     /// The team's graph (from the first pair on); this robot's origins first.
     global: Option<Global>,
     /// This robot's origins compounded without events (open loop).
     open_origins: Vec<Pose>,
-    /// A GPS fix waiting to become an event at the next frame.
-    pending_fix: Option<hetsim_msgs::GpsFix>,
     /// A rendezvous and an image match waiting for their frame.
     pending_rendezvous: Option<Rendezvous>,
     pending_match: Option<ImageMatch>,
@@ -199,7 +202,6 @@ pub struct SlamStack {
     /// Events so far.
     events: Vec<SlamEvent>,
     counters: BTreeMap<String, u64>,
-    pending_left: Option<Image>,
     last_motion: (Pose, Matrix6<f64>),
     vo_pose: Option<Pose>,
     vo_trajectory: Vec<(u64, Pose)>,
@@ -213,7 +215,6 @@ pub struct SlamStack {
     /// `(stamp, sub-map, pose in the sub-map, its covariance)` of every frame.
     trajectory: Vec<(u64, usize, Pose, Matrix6<f64>)>,
     rng: Lcg,
-    truth: Option<Pose>,
     /// Observations used, and rejected by the gate.
     pub updates: (u64, u64),
 }
@@ -261,24 +262,20 @@ fn covers(t: &Segment, d: &Segment) -> bool {
         && s0.min(s1) < t.length()
 }
 
-impl SlamStack {
-    /// SLAM for robot `robot` on the stereo camera named `stereo`, whose left optical frame
-    /// is at `body_from_camera`, around `inner`.
+impl SlamCore {
+    /// SLAM for robot `robot` on a stereo bench whose left optical frame is at
+    /// `body_from_camera`.
     pub fn new(
-        inner: Box<dyn RobotStack>,
         robot: &str,
-        stereo: &str,
         bench: Bench,
         body_from_camera: Pose,
         params: SlamParams,
         seed: u64,
     ) -> Self {
         Self {
-            inner,
             robot: robot.to_string(),
             params,
             vo: StereoVo::new(bench),
-            stereo: stereo.to_string(),
             sensor: Sensor::new(bench.camera, &body_from_camera),
             body_from_camera,
             map: LocalMap::new(),
@@ -289,7 +286,6 @@ impl SlamStack {
             closed_segments: Vec::new(),
             seen_segments: Vec::new(),
             open_origins: Vec::new(),
-            pending_fix: None,
             pending_rendezvous: None,
             pending_match: None,
             last_event_ns: 0,
@@ -299,13 +295,11 @@ impl SlamStack {
             outgoing: Vec::new(),
             events: Vec::new(),
             counters: BTreeMap::new(),
-            pending_left: None,
             last_motion: (Pose::identity(), Matrix6::identity() * 1e-4),
             vo_pose: None,
             vo_trajectory: Vec::new(),
             trajectory: Vec::new(),
             rng: Lcg(seed),
-            truth: None,
             updates: (0, 0),
         }
     }
@@ -324,7 +318,13 @@ impl SlamStack {
         *self.counters.entry(what.to_string()).or_default() += n;
     }
 
-    /// The current world pose estimate: the current origin and the pose in its map.
+    /// The robot whose first origin is the frame of the pose estimates ([`Global::frame`]).
+    fn frame(&self) -> &str {
+        self.global.as_ref().map_or(&self.robot, |g| g.frame())
+    }
+
+    /// The current pose estimate in [`SlamCore::frame`]: the current origin and the pose in
+    /// its map.
     fn world_pose(&self) -> Pose {
         let g = self
             .global
@@ -363,17 +363,18 @@ impl SlamStack {
             Gray::from_rgb(right.width as usize, right.height as usize, &right.rgb),
         );
         let motion = self.vo.process(&l, &r, &mut self.rng);
-        let Some(truth) = self.truth else {
-            return;
-        };
         let stamp = left.stamp_ns;
         if self.global.is_none() {
-            // The first pair: the first sub-map's origin is the robot's pose, taken from the
-            // oracle the robot's pilot declares. KNOWN BREACH of "no estimator reads an
-            // oracle", kept until the cooperative-SLAM issue starts each robot in its own frame.
-            self.global = Some(Global::new(&self.robot, truth, stamp));
-            self.open_origins.push(truth);
-            self.vo_pose = Some(truth);
+            // The first pair: the first sub-map's origin is the identity of the robot's own
+            // frame (seed Section V); only an event places it in another robot's.
+            let reference = self
+                .params
+                .reference_robot
+                .as_deref()
+                .unwrap_or(&self.robot);
+            self.global = Some(Global::new(&self.robot, reference, stamp));
+            self.open_origins.push(Pose::identity());
+            self.vo_pose = Some(Pose::identity());
         } else {
             let (d, cov) = match &motion {
                 Some(m) => {
@@ -389,9 +390,6 @@ impl SlamStack {
                 *v *= d;
             }
             self.observe(&l);
-        }
-        if let Some(fix) = self.pending_fix.take() {
-            self.gps_event(&fix, stamp);
         }
         if let Some(r) = self.pending_rendezvous.take_if(|r| r.stamp_ns <= stamp) {
             let sigmas = (r.sigma_m, r.sigma_rad);
@@ -447,99 +445,90 @@ impl SlamStack {
     }
 }
 
-impl RobotStack for SlamStack {
-    fn step(&mut self, now_ns: u64, inbox: &[SensorMsg]) -> Command {
-        for msg in inbox {
-            match msg {
-                // The latest true pose until the first stereo pair anchors the estimate.
-                SensorMsg::TruthPose(p) if self.global.is_none() => self.truth = Some(p.pose),
-                SensorMsg::Image(img) if img.sensor == format!("{}/left", self.stereo) => {
-                    self.pending_left = Some(img.clone())
+/// What the SLAM core is given, in the order the robot received it.
+pub(crate) enum Event {
+    /// A message other than the stereo images.
+    Msg(SensorMsg),
+    /// A stereo pair (left, right) with the same stamp.
+    Pair(Box<(Image, Image)>),
+    /// The end of a step at this time (when the graph may be shared).
+    Tick(u64),
+}
+
+impl SlamCore {
+    /// Processes one event, exactly as the stack's step met it.
+    pub(crate) fn handle(&mut self, event: Event) {
+        match event {
+            Event::Pair(pair) => self.on_pair(&pair.0, &pair.1),
+            Event::Tick(now_ns) => {
+                let period = (self.params.share_period_s * 1e9) as u64;
+                if self.last_share_ns.is_none_or(|t| now_ns >= t + period) {
+                    // Nothing goes out before a robot has been met.
+                    self.share(now_ns);
                 }
-                SensorMsg::Image(img) if img.sensor == format!("{}/right", self.stereo) => {
-                    if let Some(left) = self
-                        .pending_left
-                        .take()
-                        .filter(|l| l.stamp_ns == img.stamp_ns)
-                    {
-                        self.on_pair(&left, img);
-                    }
-                }
-                // Events need the first origin; open loop uses none.
-                _ if self.global.is_none() || !self.params.cooperative => {}
-                SensorMsg::Gps(fix) => {
-                    let due = self.params.gps_event_period_s.is_some_and(|period| {
-                        fix.stamp_ns >= self.last_event_ns + (period * 1e9) as u64
-                    });
-                    if due {
-                        self.pending_fix = Some(fix.clone());
-                    }
-                }
-                SensorMsg::Rendezvous(r) => {
-                    let period = self.params.rendezvous_period_s;
-                    if self.pending_rendezvous.is_none()
-                        && self.link_due("rendezvous", &r.other, r.stamp_ns, period)
-                    {
-                        self.pending_rendezvous = Some(r.clone());
-                    }
-                }
-                SensorMsg::ImageMatch(m) => {
-                    let period = self.params.image_match_period_s;
-                    if self.pending_match.is_none()
-                        && self.link_due("image_match", &m.other, m.stamp_ns, period)
-                    {
-                        self.pending_match = Some(m.clone());
-                    }
-                }
-                SensorMsg::Comms(d) if d.topic == SHARE_TOPIC => self.receive(d),
-                _ => {}
             }
+            Event::Msg(msg) => self.on_message(&msg),
         }
-        let period = (self.params.share_period_s * 1e9) as u64;
-        if self.last_share_ns.is_none_or(|t| now_ns >= t + period) {
-            // Nothing goes out before a robot has been met.
-            self.share(now_ns);
+    }
+
+    fn on_message(&mut self, msg: &SensorMsg) {
+        match msg {
+            // The latest true pose until the first stereo pair anchors the estimate.
+            // Events need the first origin; open loop uses none.
+            _ if self.global.is_none() || !self.params.cooperative => {}
+            SensorMsg::Rendezvous(r) => {
+                let period = self.params.rendezvous_period_s;
+                if self.pending_rendezvous.is_none()
+                    && self.link_due("rendezvous", &r.other, r.stamp_ns, period)
+                {
+                    self.pending_rendezvous = Some(r.clone());
+                }
+            }
+            SensorMsg::ImageMatch(m) => {
+                let period = self.params.image_match_period_s;
+                if self.pending_match.is_none()
+                    && self.link_due("image_match", &m.other, m.stamp_ns, period)
+                {
+                    self.pending_match = Some(m.clone());
+                }
+            }
+            SensorMsg::Comms(d) if d.topic == SHARE_TOPIC => self.receive(d),
+            _ => {}
         }
-        self.inner.step(now_ns, inbox)
     }
 
-    fn status(&self) -> StackStatus {
-        self.inner.status()
+    /// The radio messages produced since the last call.
+    pub(crate) fn take_outgoing(&mut self) -> Vec<Outgoing> {
+        std::mem::take(&mut self.outgoing)
     }
 
-    fn outbox(&mut self) -> Vec<Outgoing> {
-        let mut out = std::mem::take(&mut self.outgoing);
-        out.extend(self.inner.outbox());
-        out
+    /// The stamps of the key frames (sub-map origins) so far.
+    pub(crate) fn keyframes(&self) -> &[u64] {
+        self.global.as_ref().map_or(&[], |g| &g.own.stamps)
     }
 
-    fn artifacts(&self) -> Vec<Artifact> {
-        let mut out = self.inner.artifacts();
-        out.push(Artifact::trajectory("vo", self.vo_trajectory.clone()));
-        out.push(Artifact::trajectory("slam", self.world_trajectory(true)));
-        out.push(Artifact::trajectory(
-            "slam-open",
-            self.world_trajectory(false),
-        ));
-        out.push(Artifact {
-            name: "map".into(),
-            data: ArtifactData::Map {
-                points: self.map_points(),
-                segments: self.map_segments(),
+    /// What the core publishes at the end (the pilot's artifacts come from the shell).
+    pub(crate) fn artifacts(&self) -> Vec<Artifact> {
+        let mut out = vec![
+            Artifact::trajectory("vo", self.vo_trajectory.clone()),
+            Artifact::trajectory("slam", self.world_trajectory(true)),
+            Artifact::trajectory("slam-open", self.world_trajectory(false)),
+            Artifact {
+                name: "map".into(),
+                data: ArtifactData::Map {
+                    points: self.map_points(),
+                    segments: self.map_segments(),
+                },
             },
-        });
+        ];
         if let Some(report) = self.report() {
             out.push(Artifact::report(REPORT_ARTIFACT, &report));
         }
         out
     }
-
-    fn oracle_keyframes(&self) -> &[u64] {
-        self.global.as_ref().map_or(&[], |g| &g.own.stamps)
-    }
 }
 
-impl SlamStack {
+impl SlamCore {
     /// The global level's report for evaluation: origins with marginal covariance, the
     /// covariance of every pose of the `slam` trajectory, events, counters.
     pub fn report(&self) -> Option<SlamReport> {
@@ -570,6 +559,7 @@ impl SlamStack {
         counters.insert("unresolved_links".into(), g.unresolved as u64);
         counters.insert("submaps".into(), g.len() as u64);
         Some(SlamReport {
+            frame: g.frame().to_string(),
             origins,
             covariances,
             events: self.events.clone(),

@@ -346,6 +346,14 @@ pub fn vision(scenario: &Path) -> Result<Figures> {
         .collect();
     let (mut t_detect, mut t_stereo, mut t_vo, mut t_vo_lost) = (0.0, 0.0, 0.0, 0.0);
     let (mut t_lsd, mut t_track, mut n_segments) = (0.0, 0.0, 0usize);
+    // Segment detection as the SLAM stack runs it: at its scale, every `line_detect_period`
+    // frames.
+    let slam = hetsim_slam::stack::SlamParams::ground();
+    let at_slam_scale = segments::DetectParams {
+        scale: slam.line_detect_scale,
+        ..Default::default()
+    };
+    let mut t_lsd_slam = 0.0;
     let mut previous: Vec<segments::Segment> = Vec::new();
     let mut vo = StereoVo::new(bench);
     let mut rng = <rand_chacha::ChaCha8Rng as rand::SeedableRng>::seed_from_u64(0);
@@ -378,6 +386,9 @@ pub fn vision(scenario: &Path) -> Result<Figures> {
         t_lsd += start.elapsed().as_secs_f64();
         n_segments += found.len();
         let start = wall_clock();
+        std::hint::black_box(segments::detect(l, &at_slam_scale));
+        t_lsd_slam += start.elapsed().as_secs_f64();
+        let start = wall_clock();
         for s in &previous {
             std::hint::black_box(segments::track(l, s, &segments::TrackParams::default()));
         }
@@ -401,6 +412,11 @@ pub fn vision(scenario: &Path) -> Result<Figures> {
         ("vo_step_tracking", 1e3 * t_vo / (n - 2.0)),
         ("vo_step_without_velocity", 1e3 * t_vo_lost),
         ("segment_detection", 1e3 * t_lsd / n),
+        ("segment_detection_at_slam_scale", 1e3 * t_lsd_slam / n),
+        (
+            "segment_detection_amortised",
+            1e3 * t_lsd_slam / n / slam.line_detect_period as f64,
+        ),
         ("segment_tracking", 1e3 * t_track / (n - 1.0)),
     ] {
         f.row(vec![json!(stage), json!(ms)]);
@@ -473,9 +489,9 @@ pub fn slam() -> Figures {
             );
             let t = wall_clock();
             for k in 0..map.points.len() {
-                if let Some((pr, _)) = map.predict_point(&sensor, k, 1.0) {
-                    let z = pr.pixel + Vector2::new(0.1 * (fr % 3) as f64, -0.1);
-                    std::hint::black_box(map.update(&sensor, k, &z, 1.0, 9.21));
+                if let Some(predicted) = map.predict_point(&sensor, k, 1.0) {
+                    let z = predicted.0.pixel + Vector2::new(0.1 * (fr % 3) as f64, -0.1);
+                    std::hint::black_box(map.update_predicted(k, &z, &predicted, 9.21));
                 }
             }
             points_s += t.elapsed().as_secs_f64();

@@ -7,6 +7,7 @@
 //! the truth freely: it runs after the robots, on what they published.
 
 pub mod coverage;
+pub mod frames;
 pub mod localize;
 pub mod metrics;
 pub mod plot;

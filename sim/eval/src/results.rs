@@ -37,8 +37,16 @@ fn maps(output: &RunOutput) -> MapParts {
             segments: s,
         } = &a.data
         {
-            points.extend(p.iter().map(|(k, x)| (robot.to_string(), *k, *x)));
-            segments.extend(s.iter().map(|(k, x)| (robot.to_string(), *k, *x)));
+            // In the world, as every estimate the evaluation writes.
+            let frame = crate::frames::artifact_frame(output, robot, "map");
+            let place = |x: &[f64; 3]| -> [f64; 3] {
+                frame.map_or(*x, |w| (w * nalgebra::Point3::from(*x)).coords.into())
+            };
+            points.extend(p.iter().map(|(k, x)| (robot.to_string(), *k, place(x))));
+            segments.extend(
+                s.iter()
+                    .map(|(k, x)| (robot.to_string(), *k, [place(&x[0]), place(&x[1])])),
+            );
         }
     }
     (points, segments)

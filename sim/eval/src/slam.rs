@@ -1,11 +1,12 @@
 //! The SLAM stacks' reports against ground truth: the NEES of the robot pose, what each event
 //! did to the robot's pose error, and the team's joint accuracy.
 
+use crate::frames::{raw_reports, world_frames};
 use crate::trajectory::Estimate;
 use crate::trajectory::{evaluate_joint, Accuracy, Paired};
 use hetsim_engine::RunOutput;
 use hetsim_msgs::Pose;
-use hetsim_slam::report::{SlamReport, REPORT_ARTIFACT};
+use hetsim_slam::report::SlamReport;
 use nalgebra::{Matrix6, Vector6};
 use serde::Serialize;
 use std::collections::BTreeMap;
@@ -68,11 +69,24 @@ fn error(estimate: &Pose, truth: &Pose) -> Vector6<f64> {
     )
 }
 
-/// The SLAM reports the run's stacks published, by robot, in robot order.
+/// The SLAM reports the run's stacks published, by robot, in robot order, with their poses
+/// expressed in the world ([`crate::frames::world_frames`]; covariances of right perturbations do not
+/// change).
 pub fn reports(output: &RunOutput) -> Vec<(String, SlamReport)> {
-    output
-        .artifacts_named(REPORT_ARTIFACT)
-        .filter_map(|(robot, a)| Some((robot.to_string(), a.decode()?)))
+    let frames = world_frames(output);
+    let place = |frame: &str, p: &Pose| frames.get(frame).map_or(*p, |w| w * p);
+    raw_reports(output)
+        .into_iter()
+        .map(|(robot, mut report)| {
+            for (_, p, _) in &mut report.origins {
+                *p = place(&report.frame, p);
+            }
+            for e in &mut report.events {
+                e.before = place(&e.frame_before, &e.before);
+                e.after = place(&e.frame_after, &e.after);
+            }
+            (robot, report)
+        })
         .collect()
 }
 
@@ -188,6 +202,8 @@ mod tests {
                 other: "b".into(),
                 before: truth[5].1 * pose_from_xyz_rpy([0.0, 0.0, 1.0], [0.0; 3]),
                 after: truth[5].1 * pose_from_xyz_rpy([0.0, 0.0, 0.5], [0.0; 3]),
+                frame_before: "a".into(),
+                frame_after: "a".into(),
             }],
             ..SlamReport::default()
         };

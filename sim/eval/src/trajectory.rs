@@ -102,17 +102,22 @@ pub struct Estimate {
 }
 
 /// Every estimated trajectory of the run, in robot order and then in the order each stack
-/// published them; trajectories of fewer than two poses are left out.
+/// published them, in the world frame (a SLAM stack's estimates are placed there by
+/// [`crate::frames::world_frames`]); trajectories of fewer than two poses are left out.
 pub fn estimates(output: &RunOutput) -> Vec<Estimate> {
     let mut out = Vec::new();
     for (robot, artifacts) in &output.artifacts {
         for a in artifacts {
             if let ArtifactData::Trajectory(poses) = &a.data {
                 if poses.len() >= 2 {
+                    let frame = crate::frames::artifact_frame(output, robot, &a.name);
                     out.push(Estimate {
                         kind: a.name.clone(),
                         robot: robot.clone(),
-                        poses: poses.clone(),
+                        poses: poses
+                            .iter()
+                            .map(|(t, p)| (*t, frame.map_or(*p, |w| w * p)))
+                            .collect(),
                     });
                 }
             }

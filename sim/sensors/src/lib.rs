@@ -21,12 +21,14 @@
 //!   (mean 0.04, std 0.02 m in the seed); occluded or distant children are not reported;
 //! * rendezvous: another robot within `range_m`, inside the `fov_deg` cone and with a clear
 //!   line of sight yields its relative pose with `N(0, σ_m)` on each axis and `N(0, σ)` on
-//!   the yaw;
+//!   each rotation axis, drawn in the SLAM graph's convention ([`relative`]) so that the
+//!   error has exactly the covariance the message tells;
 //! * image match (emulates the seed's image-to-image matching): once per key frame of
 //!   another robot (a sub-map origin its stack reported) at least `min_age_s` old whose
 //!   position is within `range_m` horizontally of this robot, the relative pose
 //!   `self_from_keyframe` with `N(0, σ_m)` per axis and a rotation of `N(0, σ)` per axis.
 
+pub mod relative;
 mod suite;
 
 pub use suite::{Sample, SensorSuite};

@@ -1,5 +1,6 @@
 //! All non-visual sensors of a run.
 
+use crate::relative::noisy_relative;
 use hetsim_core::{SimClock, SimRng, Streams};
 use hetsim_msgs::{
     pose_from_xyz_rpy, wrap_angle, yaw_of, ChildTracks, CompassReading, GpsFix, ImageMatch,
@@ -7,7 +8,7 @@ use hetsim_msgs::{
 };
 use hetsim_physics::Physics;
 use hetsim_scene::{Mount, Scenario, Sensor};
-use nalgebra::{UnitQuaternion, Vector3};
+use nalgebra::Vector3;
 use rand::RngExt;
 use rand_distr::{Distribution, Normal, StandardNormal};
 
@@ -420,25 +421,15 @@ impl SensorSuite {
                         continue;
                     }
                     let truth = world_from_body.inverse() * other_pose;
-                    let t = truth.translation.vector;
-                    let noisy_t = Vector3::new(
-                        t.x + normal(&mut s.rng, *sigma_m),
-                        t.y + normal(&mut s.rng, *sigma_m),
-                        t.z + normal(&mut s.rng, *sigma_m),
-                    );
-                    let yaw_noise = UnitQuaternion::from_euler_angles(
-                        0.0,
-                        0.0,
-                        normal(&mut s.rng, sigma_deg.to_radians()),
-                    );
-                    let relative = Pose::from_parts(noisy_t.into(), yaw_noise * truth.rotation);
+                    let sr = sigma_deg.to_radians();
+                    let relative = noisy_relative(&truth, *sigma_m, sr, &mut s.rng);
                     seen.push(Rendezvous {
                         stamp_ns,
                         sensor: sensor.clone(),
                         other: names[other].clone(),
                         relative,
                         sigma_m: *sigma_m,
-                        sigma_rad: sigma_deg.to_radians(),
+                        sigma_rad: sr,
                     });
                 }
                 seen.into_iter().map(SensorMsg::Rendezvous).collect()
@@ -474,24 +465,14 @@ impl SensorSuite {
                 };
                 used.insert((other, other_stamp_ns));
                 let truth = world_from_body.inverse() * kf;
-                let t = truth.translation.vector;
                 let sr = sigma_deg.to_radians();
-                let noisy_t = Vector3::new(
-                    t.x + normal(&mut s.rng, *sigma_m),
-                    t.y + normal(&mut s.rng, *sigma_m),
-                    t.z + normal(&mut s.rng, *sigma_m),
-                );
-                let rot_noise = UnitQuaternion::from_scaled_axis(Vector3::new(
-                    normal(&mut s.rng, sr),
-                    normal(&mut s.rng, sr),
-                    normal(&mut s.rng, sr),
-                ));
+                let relative = noisy_relative(&truth, *sigma_m, sr, &mut s.rng);
                 vec![SensorMsg::ImageMatch(ImageMatch {
                     stamp_ns,
                     sensor,
                     other: names[other].clone(),
                     other_stamp_ns,
-                    relative: Pose::from_parts(noisy_t.into(), truth.rotation * rot_noise),
+                    relative,
                     sigma_m: *sigma_m,
                     sigma_rad: sr,
                 })]

@@ -112,14 +112,9 @@ pub fn build_stack(
                 _ => hetsim_slam::stack::SlamParams::ground(),
             };
             params.cooperative = !open_loop;
-            // GPS fixes are events only for robots that carry a receiver.
-            params.gps_event_period_s = None;
-            for s in &robot.model.sensors {
-                if let Sensor::Gps { mount, .. } = s {
-                    params.gps_offset = nalgebra::Vector3::from(mount.xyz_m);
-                    params.gps_event_period_s = Some(30.0);
-                }
-            }
+            // The team's frame is the first sub-map of the scenario's first robot (seed
+            // Section V: Dala's); every other robot starts in its own until an event links it.
+            params.reference_robot = scenario.robots.first().map(|r| r.spec.name.clone());
             Box::new(hetsim_slam::stack::SlamStack::new(
                 pilot,
                 &robot.spec.name,

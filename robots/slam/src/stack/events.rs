@@ -1,8 +1,8 @@
-//! The SLAM stack's global level: sub-maps closed at their origins, GPS, rendezvous and image-match events, the team's graph exchanged over the radio.
+//! The SLAM stack's global level: sub-maps closed at their origins, rendezvous and image-match events, the team's graph exchanged over the radio.
 
 use super::*;
 
-impl SlamStack {
+impl SlamCore {
     /// Closes the current sub-map at the frame `stamp`: the robot pose in it becomes the
     /// relative transform to a new node, and a new local map starts there.
     pub(super) fn new_submap(&mut self, stamp: u64) {
@@ -11,7 +11,7 @@ impl SlamStack {
         // VO's, which only knows its random errors; the drift VO shows against the truth
         // (1 to 6 % of the distance in the village) is systematic. The edge therefore gets a
         // drift term of `edge_drift` of the distance travelled in the sub-map (each axis) and
-        // 0.1 degree per metre, so that GPS events can pull the origins back.
+        // 0.1 degree per metre, so that events can pull the origins back.
         let d = relative.translation.vector.norm();
         let (st, sr) = (
             self.params.edge_drift * d + 1e-3,
@@ -64,12 +64,20 @@ impl SlamStack {
     }
 
     /// Optimizes the team's graph after an event and logs it; the part goes to the peers.
-    pub(super) fn after_event(&mut self, kind: &str, other: &str, stamp: u64, before: Pose) {
+    /// `before` is the robot's pose estimate before the event, in the frame of `frame_before`.
+    pub(super) fn after_event(
+        &mut self,
+        kind: &str,
+        other: &str,
+        stamp: u64,
+        (before, frame_before): (Pose, String),
+    ) {
         let g = self
             .global
             .as_mut()
             .expect("events come after the first pair");
         g.optimize();
+        let frame_after = g.frame().to_string();
         let after = self.world_pose();
         self.events.push(SlamEvent {
             kind: kind.to_string(),
@@ -77,28 +85,11 @@ impl SlamStack {
             other: other.to_string(),
             before,
             after,
+            frame_before,
+            frame_after,
         });
         self.last_event_ns = stamp;
         self.share(stamp);
-    }
-
-    /// A GPS fix as an event (seed Section III): a new sub-map starts at the robot's pose, the
-    /// fix constrains its origin, and the graph is optimized.
-    pub(super) fn gps_event(&mut self, fix: &hetsim_msgs::GpsFix, stamp: u64) {
-        let before = self.world_pose();
-        let node = self.event_node(stamp);
-        let s2 = fix.sigma_m * fix.sigma_m;
-        let offset = self.params.gps_offset;
-        self.global
-            .as_mut()
-            .expect("after the first pair")
-            .fix(Fix {
-                node,
-                offset,
-                position: Vector3::from(fix.position_m),
-                info: Matrix3::identity() / s2,
-            });
-        self.after_event("gps", "", stamp, before);
     }
 
     /// A link event (seed Sections III and V): the origin made now is linked to the other
@@ -115,7 +106,7 @@ impl SlamStack {
         stamp: u64,
     ) {
         let (other, other_stamp_ns) = link;
-        let before = self.world_pose();
+        let before = (self.world_pose(), self.frame().to_string());
         let node = self.event_node(stamp);
         self.global
             .as_mut()

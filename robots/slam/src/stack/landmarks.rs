@@ -2,15 +2,16 @@
 
 use super::*;
 
-impl SlamStack {
+impl SlamCore {
     pub(super) fn observe(&mut self, img: &Gray) {
         let sigma = self.params.sigma_px;
         let mut k = 0;
         while k < self.map.points.len() {
-            let Some((pr, s)) = self.map.predict_point(&self.sensor, k, sigma) else {
+            let Some(predicted) = self.map.predict_point(&self.sensor, k, sigma) else {
                 k += 1;
                 continue;
             };
+            let (pr, s) = &predicted;
             let inside = pr.pixel.x >= 6.0
                 && pr.pixel.y >= 6.0
                 && pr.pixel.x < img.width as f64 - 7.0
@@ -20,18 +21,21 @@ impl SlamStack {
                 continue;
             }
             self.map.points[k].searched += 1;
-            let found = search_ellipse(
+            let half = self.vo.half().expect("VO ran on this frame");
+            let found = search_pyramid(
                 img,
+                half,
                 &self.patches[&self.map.points[k].id],
                 [pr.pixel.x, pr.pixel.y],
                 [[s[(0, 0)], s[(0, 1)]], [s[(1, 0)], s[(1, 1)]]],
                 9.21,
                 0.8,
+                3.0,
             );
             if let Some(m) = found {
                 match self
                     .map
-                    .update(&self.sensor, k, &Vector2::new(m.x, m.y), sigma, 9.21)
+                    .update_predicted(k, &Vector2::new(m.x, m.y), &predicted, 9.21)
                 {
                     Some(Update::Accepted) => {
                         self.map.points[k].found += 1;
@@ -130,6 +134,7 @@ impl SlamStack {
         }
         let detect = segments::DetectParams {
             min_length: self.params.min_line_px * img.width as f64 / 1024.0,
+            scale: self.params.line_detect_scale,
             ..Default::default()
         };
         let mut found = segments::detect(img, &detect);
@@ -178,7 +183,14 @@ impl SlamStack {
                 p[0] >= 0.0 && p[1] >= 0.0 && p[0] < img.width as f64 && p[1] < img.height as f64
             })
             .collect();
-        let corners: Vec<Corner> = detect(img, 0.01, 8);
+        // VO detected this image's corners above 0.005 of the largest response; the map
+        // takes those above 0.01 of it (what `harris::detect(img, 0.01, 8)` gives).
+        let (all, max) = self.vo.corners();
+        let corners: Vec<Corner> = all
+            .iter()
+            .filter(|c| c.response >= 0.01 * max)
+            .copied()
+            .collect();
         let chosen = select_new(
             &corners,
             img.width,
@@ -191,7 +203,8 @@ impl SlamStack {
             if self.map.landmarks() >= self.params.max_landmarks {
                 break;
             }
-            let Some(patch) = Patch::at(img, c.x, c.y) else {
+            let half = self.vo.half().expect("VO ran on this frame");
+            let Some(patch) = Template::at(img, half, c.x, c.y) else {
                 continue;
             };
             let id = self.next_id;
