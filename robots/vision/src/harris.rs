@@ -14,67 +14,81 @@ pub struct Corner {
 }
 
 /// Harris responses `det(M) - k trace(M)^2` of the structure tensor M (Sobel gradients,
-/// smoothed with a separable binomial 5 x 5 window), k = 0.04.
+/// smoothed with a separable binomial 5 x 5 window), k = 0.04; zero within two pixels of
+/// the border.
+///
+/// The image is streamed row by row: each row's gradient products are smoothed along the
+/// row into a ring of the last five rows, and an output row is smoothed down its columns
+/// from the ring as soon as its five rows are there. The arithmetic is that of the
+/// whole-image passes (same operations in the same order, so the same bits: a test holds it
+/// to them), but the working set is a few rows instead of seven image-sized buffers, and
+/// each pass is a zip of row slices the compiler vectorizes. `hetsim bench --vision`, back
+/// to back: Harris with the selection 5.1 -> 4.1 ms per 1024 x 768 frame, the VO step
+/// 14.2 -> 13.0 ms.
 pub fn response(img: &Gray) -> Vec<f32> {
     let (w, h) = (img.width, img.height);
-    let mut ixx = vec![0f32; w * h];
-    let mut iyy = vec![0f32; w * h];
-    let mut ixy = vec![0f32; w * h];
-    if w < 3 || h < 3 {
-        return vec![0.0; w * h];
+    let mut out = vec![0f32; w * h];
+    if w < 5 || h < 5 {
+        return out;
     }
-    for y in 1..h - 1 {
-        let (a, b, c) = (
-            &img.data[(y - 1) * w..y * w],
-            &img.data[y * w..(y + 1) * w],
-            &img.data[(y + 1) * w..(y + 2) * w],
-        );
-        let row = y * w + 1..(y + 1) * w - 1;
-        let (oxx, oyy, oxy) = (&mut ixx[row.clone()], &mut iyy[row.clone()], &mut ixy[row]);
-        for (i, ((xx, yy), xy)) in oxx
-            .iter_mut()
-            .zip(oyy.iter_mut())
-            .zip(oxy.iter_mut())
-            .enumerate()
-        {
+    // [product][ring slot][x], products xx, yy, xy.
+    let mut ring = vec![0f32; 3 * 5 * w];
+    let mut raw = vec![0f32; 3 * w];
+    let (mut sxx, mut syy, mut sxy) = (vec![0f32; w], vec![0f32; w], vec![0f32; w]);
+    let at = |k: usize, slot: usize| (k * 5 + slot) * w;
+    for r in 0..h {
+        // Gradient products of row r (zero on the image's first and last rows and columns).
+        raw.fill(0.0);
+        if r >= 1 && r + 1 < h {
+            let (a, b, c) = (
+                &img.data[(r - 1) * w..r * w],
+                &img.data[r * w..(r + 1) * w],
+                &img.data[(r + 1) * w..(r + 2) * w],
+            );
+            let (xx, rest) = raw.split_at_mut(w);
+            let (yy, xy) = rest.split_at_mut(w);
+            let windows = a.windows(3).zip(b.windows(3)).zip(c.windows(3));
+            let products = xx[1..].iter_mut().zip(&mut yy[1..]).zip(&mut xy[1..]);
             // Pixel x = i + 1; its neighbours at i, i + 1, i + 2.
-            let gx = (a[i + 2] + 2.0 * b[i + 2] + c[i + 2]) - (a[i] + 2.0 * b[i] + c[i]);
-            let gy = (c[i] + 2.0 * c[i + 1] + c[i + 2]) - (a[i] + 2.0 * a[i + 1] + a[i + 2]);
-            *xx = gx * gx;
-            *yy = gy * gy;
-            *xy = gx * gy;
-        }
-    }
-    // Separable binomial [1 4 6 4 1] / 16: rows into `tmp`, then columns row by row
-    // straight into the response.
-    let smooth_rows = |a: &mut [f32]| {
-        let mut row = vec![0f32; w];
-        for line in a.chunks_exact_mut(w) {
-            row.copy_from_slice(line);
-            line.fill(0.0);
-            if w >= 5 {
-                for (d, s) in line[2..w - 2].iter_mut().zip(row.windows(5)) {
-                    *d = (s[0] + 4.0 * s[1] + 6.0 * s[2] + 4.0 * s[3] + s[4]) / 16.0;
-                }
+            for (((a, b), c), ((xx, yy), xy)) in windows.zip(products) {
+                let gx = (a[2] + 2.0 * b[2] + c[2]) - (a[0] + 2.0 * b[0] + c[0]);
+                let gy = (c[0] + 2.0 * c[1] + c[2]) - (a[0] + 2.0 * a[1] + a[2]);
+                *xx = gx * gx;
+                *yy = gy * gy;
+                *xy = gx * gy;
             }
         }
-    };
-    smooth_rows(&mut ixx);
-    smooth_rows(&mut iyy);
-    smooth_rows(&mut ixy);
-    let mut out = vec![0f32; w * h];
-    let (mut sxx, mut syy, mut sxy) = (vec![0f32; w], vec![0f32; w], vec![0f32; w]);
-    let column = |a: &[f32], y: usize, o: &mut [f32]| {
-        let r = |k: usize| &a[(y + k - 2) * w..(y + k - 1) * w];
-        let rows = r(0).iter().zip(r(1)).zip(r(2)).zip(r(3)).zip(r(4));
-        for (d, ((((r0, r1), r2), r3), r4)) in o.iter_mut().zip(rows) {
-            *d = (r0 + 4.0 * r1 + 6.0 * r2 + 4.0 * r3 + r4) / 16.0;
+        // Binomial [1 4 6 4 1] / 16 along the row, into the ring.
+        let slot = r % 5;
+        for k in 0..3 {
+            let src = &raw[k * w..(k + 1) * w];
+            let dst = &mut ring[at(k, slot)..at(k, slot) + w];
+            dst[..2].fill(0.0);
+            dst[w - 2..].fill(0.0);
+            for (d, s) in dst[2..w - 2].iter_mut().zip(src.windows(5)) {
+                *d = (s[0] + 4.0 * s[1] + 6.0 * s[2] + 4.0 * s[3] + s[4]) / 16.0;
+            }
         }
-    };
-    for y in 2..h.saturating_sub(2) {
-        column(&ixx, y, &mut sxx);
-        column(&iyy, y, &mut syy);
-        column(&ixy, y, &mut sxy);
+        // Output row y = r - 2, down the columns over rows y - 2 ..= y + 2.
+        if r < 4 {
+            continue;
+        }
+        let y = r - 2;
+        let column = |k: usize, o: &mut [f32]| {
+            let row = |j: usize| &ring[at(k, (y - 2 + j) % 5)..at(k, (y - 2 + j) % 5) + w];
+            let rows = row(0)
+                .iter()
+                .zip(row(1))
+                .zip(row(2))
+                .zip(row(3))
+                .zip(row(4));
+            for (d, ((((r0, r1), r2), r3), r4)) in o.iter_mut().zip(rows) {
+                *d = (r0 + 4.0 * r1 + 6.0 * r2 + 4.0 * r3 + r4) / 16.0;
+            }
+        };
+        column(0, &mut sxx);
+        column(1, &mut syy);
+        column(2, &mut sxy);
         for (((o, a), b), c) in out[y * w..(y + 1) * w]
             .iter_mut()
             .zip(&sxx)
@@ -221,6 +235,103 @@ pub fn select_new(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The whole-image passes [`response`] streams (its implementation before), as the
+    /// reference it must reproduce bit for bit.
+    fn response_by_whole_image_passes(img: &Gray) -> Vec<f32> {
+        let (w, h) = (img.width, img.height);
+        let mut ixx = vec![0f32; w * h];
+        let mut iyy = vec![0f32; w * h];
+        let mut ixy = vec![0f32; w * h];
+        if w < 3 || h < 3 {
+            return vec![0.0; w * h];
+        }
+        for y in 1..h - 1 {
+            let (a, b, c) = (
+                &img.data[(y - 1) * w..y * w],
+                &img.data[y * w..(y + 1) * w],
+                &img.data[(y + 1) * w..(y + 2) * w],
+            );
+            let row = y * w + 1..(y + 1) * w - 1;
+            let (oxx, oyy, oxy) = (&mut ixx[row.clone()], &mut iyy[row.clone()], &mut ixy[row]);
+            for (i, ((xx, yy), xy)) in oxx
+                .iter_mut()
+                .zip(oyy.iter_mut())
+                .zip(oxy.iter_mut())
+                .enumerate()
+            {
+                // Pixel x = i + 1; its neighbours at i, i + 1, i + 2.
+                let gx = (a[i + 2] + 2.0 * b[i + 2] + c[i + 2]) - (a[i] + 2.0 * b[i] + c[i]);
+                let gy = (c[i] + 2.0 * c[i + 1] + c[i + 2]) - (a[i] + 2.0 * a[i + 1] + a[i + 2]);
+                *xx = gx * gx;
+                *yy = gy * gy;
+                *xy = gx * gy;
+            }
+        }
+        // Separable binomial [1 4 6 4 1] / 16: rows into `tmp`, then columns row by row
+        // straight into the response.
+        let smooth_rows = |a: &mut [f32]| {
+            let mut row = vec![0f32; w];
+            for line in a.chunks_exact_mut(w) {
+                row.copy_from_slice(line);
+                line.fill(0.0);
+                if w >= 5 {
+                    for (d, s) in line[2..w - 2].iter_mut().zip(row.windows(5)) {
+                        *d = (s[0] + 4.0 * s[1] + 6.0 * s[2] + 4.0 * s[3] + s[4]) / 16.0;
+                    }
+                }
+            }
+        };
+        smooth_rows(&mut ixx);
+        smooth_rows(&mut iyy);
+        smooth_rows(&mut ixy);
+        let mut out = vec![0f32; w * h];
+        let (mut sxx, mut syy, mut sxy) = (vec![0f32; w], vec![0f32; w], vec![0f32; w]);
+        let column = |a: &[f32], y: usize, o: &mut [f32]| {
+            let r = |k: usize| &a[(y + k - 2) * w..(y + k - 1) * w];
+            let rows = r(0).iter().zip(r(1)).zip(r(2)).zip(r(3)).zip(r(4));
+            for (d, ((((r0, r1), r2), r3), r4)) in o.iter_mut().zip(rows) {
+                *d = (r0 + 4.0 * r1 + 6.0 * r2 + 4.0 * r3 + r4) / 16.0;
+            }
+        };
+        for y in 2..h.saturating_sub(2) {
+            column(&ixx, y, &mut sxx);
+            column(&iyy, y, &mut syy);
+            column(&ixy, y, &mut sxy);
+            for (((o, a), b), c) in out[y * w..(y + 1) * w]
+                .iter_mut()
+                .zip(&sxx)
+                .zip(&syy)
+                .zip(&sxy)
+            {
+                *o = a * b - c * c - 0.04 * ((a + b) * (a + b));
+            }
+        }
+        out
+    }
+
+    #[test]
+    fn streamed_response_is_the_whole_image_passes_bit_for_bit() {
+        // A textured image with a constant border band, and sizes at the edge cases.
+        for (w, h) in [(97, 61), (5, 5), (6, 9), (4, 12), (12, 4), (3, 3)] {
+            let data = (0..w * h)
+                .map(|i| {
+                    let (x, y) = ((i % w) as f32, (i / w) as f32);
+                    (128.0 + 90.0 * (0.37 * x).sin() * (0.23 * y + 0.1 * x).cos()).floor()
+                })
+                .collect();
+            let img = Gray {
+                width: w,
+                height: h,
+                data,
+            };
+            let (a, b) = (response(&img), response_by_whole_image_passes(&img));
+            assert_eq!(a.len(), b.len());
+            for (i, (x, y)) in a.iter().zip(&b).enumerate() {
+                assert_eq!(x.to_bits(), y.to_bits(), "{w} x {h}, pixel {i}: {x} vs {y}");
+            }
+        }
+    }
 
     fn squares() -> Gray {
         // Two bright squares on black: eight corners.
