@@ -249,6 +249,20 @@ mod tests {
     use super::*;
     use rand::{RngExt, SeedableRng};
 
+    #[test]
+    fn mirroring_copies_every_lower_element_and_only_those() {
+        for n in [1, 5, 32, 33, 64, 97] {
+            let mut p = DMatrix::from_fn(n, n, |r, c| (r * 1000 + c) as f64);
+            mirror_lower(&mut p);
+            for r in 0..n {
+                for c in 0..n {
+                    let want = (r.max(c) * 1000 + r.min(c)) as f64;
+                    assert_eq!(p[(r, c)], want, "n {n}: ({r}, {c})");
+                }
+            }
+        }
+    }
+
     /// 120 updates with random Jacobians on the robot and a random point's block of a
     /// 151-state map (240 columns: batches applied at 64, 128 and 192 columns on the way),
     /// against the textbook dense update `P ← P - K (P Hᵀ)ᵀ` computed here on the full matrix.
