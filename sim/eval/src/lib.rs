@@ -6,6 +6,7 @@
 //! artifacts, counts) and the scenario; it never reaches into the engine's loop. It may use
 //! the truth freely: it runs after the robots, on what they published.
 
+pub mod charts;
 pub mod coverage;
 pub mod frames;
 pub mod localize;

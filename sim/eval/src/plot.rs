@@ -244,96 +244,6 @@ fn line(img: &mut RgbImage, a: (f64, f64), b: (f64, f64), color: Rgb<u8>) {
     }
 }
 
-/// Estimated against true trajectory: top view (x east, y north, equal scales) on the left,
-/// altitude against time on the right. Truth in black, the estimate in blue.
-pub fn trajectory_plot(truth: &[(u64, [f64; 3])], estimate: &[(u64, [f64; 3])]) -> RgbImage {
-    trajectories_plot(truth, &[estimate.to_vec()])
-}
-
-/// Several estimates against the truth, like Fig. 7 of seed 000: top view (equal scales) on
-/// the left, altitude against time on the right; the truth in black, each series in its
-/// colour (the order of `series`: blue, orange, green, purple), with a legend of coloured
-/// bars in the same order.
-pub fn trajectories_plot(truth: &[(u64, [f64; 3])], series: &[Vec<(u64, [f64; 3])>]) -> RgbImage {
-    const COLOURS: [Rgb<u8>; 4] = [
-        MAPPING,
-        COORDINATION,
-        Rgb([78, 154, 6]),
-        Rgb([117, 80, 123]),
-    ];
-    let (w, h, pad) = (960i64, 420i64, 40i64);
-    let mut img = RgbImage::from_pixel(w as u32, h as u32, BG);
-    let all = || truth.iter().chain(series.iter().flatten());
-    let (mut x0, mut x1, mut y0, mut y1, mut z0, mut z1) =
-        (f64::MAX, f64::MIN, f64::MAX, f64::MIN, f64::MAX, f64::MIN);
-    for (_, p) in all() {
-        x0 = x0.min(p[0]);
-        x1 = x1.max(p[0]);
-        y0 = y0.min(p[1]);
-        y1 = y1.max(p[1]);
-        z0 = z0.min(p[2]);
-        z1 = z1.max(p[2]);
-    }
-    let t1 = all().map(|(t, _)| *t).max().unwrap_or(1).max(1) as f64;
-    let span = (x1 - x0).max(y1 - y0).max(1e-3);
-    let side = (h - 2 * pad) as f64;
-    let top = |p: &[f64; 3]| {
-        (
-            pad as f64 + (p[0] - x0) / span * side,
-            (h - pad) as f64 - (p[1] - y0) / span * side,
-        )
-    };
-    let zspan = (z1 - z0).max(1.0);
-    let alt_x0 = (pad * 2 + side as i64) as f64;
-    let alt_w = w as f64 - alt_x0 - pad as f64;
-    let alt = |t: u64, z: f64| {
-        (
-            alt_x0 + t as f64 / t1 * alt_w,
-            (h - pad) as f64 - (z - z0 + 0.05 * zspan) / (1.1 * zspan) * side,
-        )
-    };
-    for (x, y, ww) in [(pad, pad, side as i64), (alt_x0 as i64, pad, alt_w as i64)] {
-        rect(&mut img, x, y, ww, 1, GRID);
-        rect(&mut img, x, y + side as i64, ww, 1, INK);
-        rect(&mut img, x, y, 1, side as i64, INK);
-    }
-    let mut draw = |pts: &[(u64, [f64; 3])], color: Rgb<u8>| {
-        for pair in pts.windows(2) {
-            line(&mut img, top(&pair[0].1), top(&pair[1].1), color);
-            line(
-                &mut img,
-                alt(pair[0].0, pair[0].1[2]),
-                alt(pair[1].0, pair[1].1[2]),
-                color,
-            );
-        }
-    };
-    for (k, s) in series.iter().enumerate() {
-        draw(s, COLOURS[k % COLOURS.len()]);
-    }
-    draw(truth, INK);
-    for k in 0..series.len() {
-        rect(
-            &mut img,
-            alt_x0 as i64 + 10 + 40 * k as i64,
-            10,
-            30,
-            6,
-            COLOURS[k % COLOURS.len()],
-        );
-    }
-    text(&mut img, pad, h - pad + 12, &format!("{:.1}", span), 2, INK);
-    text(
-        &mut img,
-        alt_x0 as i64,
-        h - pad + 12,
-        &format!("{:.1}-{:.1}", z0, z1),
-        2,
-        INK,
-    );
-    img
-}
-
 /// Colours of the children in path plots.
 const CHILDREN: [Rgb<u8>; 6] = [
     Rgb([204, 0, 0]),
@@ -490,17 +400,6 @@ mod tests {
     }
 
     #[test]
-    fn trajectory_plot_draws_both_series() {
-        let truth: Vec<(u64, [f64; 3])> =
-            (0..20).map(|k| (k * 100, [k as f64, 0.0, 10.0])).collect();
-        let est: Vec<(u64, [f64; 3])> = (0..20).map(|k| (k * 100, [k as f64, 2.0, 11.0])).collect();
-        let img = trajectory_plot(&truth, &est);
-        let count = |c: Rgb<u8>| img.pixels().filter(|p| **p == c).count();
-        assert!(count(MAPPING) > 500, "the estimate is drawn");
-        assert!(count(INK) > 500, "the truth is drawn");
-    }
-
-    #[test]
     fn quartiles_of_known_values() {
         assert_eq!(
             quartiles(&[1.0, 2.0, 3.0, 4.0, 5.0]),
@@ -538,20 +437,5 @@ mod tests {
             "a 3.5 m path at 80 px/m"
         );
         assert_eq!(count(&paths, CHILDREN[1]), 0);
-    }
-
-    #[test]
-    fn the_fig7_plot_draws_every_series_and_the_truth() {
-        let truth: Vec<(u64, [f64; 3])> =
-            (0..20).map(|k| (k * 100, [k as f64, 0.0, 10.0])).collect();
-        let a: Vec<(u64, [f64; 3])> = (0..20).map(|k| (k * 100, [k as f64, 2.0, 11.0])).collect();
-        let b: Vec<(u64, [f64; 3])> = (0..20).map(|k| (k * 100, [k as f64, -2.0, 9.0])).collect();
-        let img = trajectories_plot(&truth, &[a, b]);
-        let count = |c: Rgb<u8>| img.pixels().filter(|p| **p == c).count();
-        assert!(
-            count(MAPPING) > 500 && count(COORDINATION) > 500,
-            "both series"
-        );
-        assert!(count(INK) > 500, "the truth");
     }
 }

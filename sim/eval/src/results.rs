@@ -169,7 +169,7 @@ fn files(scenario: &Scenario, result: &RunOutput, metrics: &Metrics) -> Vec<(Str
     for e in &estimates {
         let text: String = e.poses.iter().map(|(t, p)| tum_line(*t, p)).collect();
         files.push((format!("{}/{}.tum", e.kind, e.robot), text.into_bytes()));
-        // A picture: estimate against truth over the estimate's time span.
+        // A picture: estimate against truth over the estimate's time span (sim time).
         let (first, last) = (e.poses[0].0, e.poses[e.poses.len() - 1].0);
         let xyz = |p: &Pose| p.translation.vector.into();
         let truth: Vec<(u64, [f64; 3])> = result
@@ -180,13 +180,20 @@ fn files(scenario: &Scenario, result: &RunOutput, metrics: &Metrics) -> Vec<(Str
                 poses
                     .iter()
                     .filter(|(t, _)| *t >= first && *t <= last)
-                    .map(|(t, p)| (*t - first, xyz(p)))
+                    .map(|(t, p)| (*t, xyz(p)))
                     .collect()
             })
             .unwrap_or_default();
-        let estimate: Vec<(u64, [f64; 3])> =
-            e.poses.iter().map(|(t, p)| (*t - first, xyz(p))).collect();
-        let png = crate::plot::png(&crate::plot::trajectory_plot(&truth, &estimate));
+        let estimate: Vec<(u64, [f64; 3])> = e.poses.iter().map(|(t, p)| (*t, xyz(p))).collect();
+        let png = crate::charts::trajectories_png(
+            &format!("{}: {} against truth", e.robot, series_label(&e.kind)),
+            &truth,
+            &[crate::charts::Series {
+                label: series_label(&e.kind),
+                points: &estimate,
+            }],
+            &event_marks(metrics, &e.robot),
+        );
         files.push((format!("plots/{}-{}.png", e.kind, e.robot), png));
     }
     let (map_points, map_segments) = maps(result);
@@ -236,7 +243,7 @@ fn files(scenario: &Scenario, result: &RunOutput, metrics: &Metrics) -> Vec<(Str
             continue;
         }
         let first = series[0].poses[0].0;
-        let xyz = |(t, p): &(u64, Pose)| (t.saturating_sub(first), p.translation.vector.into());
+        let xyz = |(t, p): &(u64, Pose)| (*t, p.translation.vector.into());
         let last = series[0].poses[series[0].poses.len() - 1].0;
         let truth: Vec<(u64, [f64; 3])> = truth
             .iter()
@@ -247,7 +254,22 @@ fn files(scenario: &Scenario, result: &RunOutput, metrics: &Metrics) -> Vec<(Str
             .iter()
             .map(|e| e.poses.iter().map(xyz).collect())
             .collect();
-        let png = crate::plot::png(&crate::plot::trajectories_plot(&truth, &lines));
+        let named: Vec<crate::charts::Series> = series
+            .iter()
+            .zip(&lines)
+            .map(|(e, points)| crate::charts::Series {
+                label: series_label(&e.kind),
+                points,
+            })
+            .collect();
+        let png = crate::charts::trajectories_png(
+            &format!(
+                "{robot}: VO, open-loop and cooperative SLAM against truth (Fig. 7, seed 000)"
+            ),
+            &truth,
+            &named,
+            &event_marks(metrics, robot),
+        );
         files.push((format!("plots/fig7-{robot}.png"), png));
     }
     if let Some(team) = crate::team::TeamOutcome::of(result) {
@@ -256,6 +278,31 @@ fn files(scenario: &Scenario, result: &RunOutput, metrics: &Metrics) -> Vec<(Str
     let metrics = serde_json::to_vec_pretty(metrics).expect("metrics serialize");
     files.push(("metrics.json".to_string(), metrics));
     files
+}
+
+/// A trajectory kind's name in figures.
+fn series_label(kind: &str) -> &str {
+    match kind {
+        "vo" => "VO",
+        "slam-open" => "open-loop SLAM",
+        "slam" => "cooperative SLAM",
+        other => other,
+    }
+}
+
+/// A robot's SLAM events as marks on a figure's time axis (sim seconds).
+fn event_marks(metrics: &Metrics, robot: &str) -> Vec<crate::charts::Mark> {
+    metrics
+        .slam
+        .as_ref()
+        .and_then(|m| m.robots.get(robot))
+        .map(|r| {
+            r.events
+                .iter()
+                .map(|e| (e.time_s, e.kind.replace('_', " ")))
+                .collect()
+        })
+        .unwrap_or_default()
 }
 
 /// An ASCII PLY of mapped points, coloured by robot (in order of first appearance), with

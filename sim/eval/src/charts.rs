@@ -1,0 +1,308 @@
+//! Trajectory figures drawn with `plotters`: axes with ticks and units, a title, a legend
+//! naming every series, text in DejaVu Sans (embedded, so a figure is the same bytes on any
+//! machine, with no system font or font library).
+//!
+//! [`trajectories_png`] is Fig. 7 of seed 000 as the seed draws it: the top view (x east,
+//! y north, equal scales) on the left, the altitude against time on the right, each estimate
+//! beside the truth, and the SLAM events as labelled vertical lines on the time axis.
+
+use image::RgbImage;
+use plotters::coord::Shift;
+use plotters::prelude::*;
+use plotters::style::FontStyle;
+use std::sync::Once;
+
+/// A figure's font family, registered once from the embedded DejaVu Sans.
+const FONT: &str = "sans-serif";
+
+fn register_font() {
+    static ONCE: Once = Once::new();
+    ONCE.call_once(|| {
+        // The bytes are a valid TrueType font (the dejavu crate's); a failure here is a
+        // build defect, not an input.
+        plotters::style::register_font(FONT, FontStyle::Normal, dejavu::sans::regular())
+            .unwrap_or_else(|_| panic!("the embedded DejaVu Sans is a valid font"));
+    });
+}
+
+/// Series colours, in order: a colour-blind-safe set (Okabe-Ito), the truth in black.
+const COLOURS: [RGBColor; 6] = [
+    RGBColor(0, 114, 178),
+    RGBColor(230, 159, 0),
+    RGBColor(0, 158, 115),
+    RGBColor(204, 121, 167),
+    RGBColor(213, 94, 0),
+    RGBColor(86, 180, 233),
+];
+
+/// One estimate: its legend label and its positions `(ns since the figure's start, [x, y, z]
+/// metres)`.
+pub struct Series<'a> {
+    /// The legend's name for it.
+    pub label: &'a str,
+    /// Stamped positions.
+    pub points: &'a [(u64, [f64; 3])],
+}
+
+/// A vertical line on the time axis: `(seconds since the figure's start, label)`.
+pub type Mark = (f64, String);
+
+/// The figure's size, pixels.
+const SIZE: (u32, u32) = (1400, 620);
+
+/// Fig. 7 of seed 000 (see the module docs) as PNG bytes: `truth` in black and each of
+/// `series` in its colour, `marks` on the altitude panel. Points that are not finite are
+/// left out (they would have no place on the axes).
+pub fn trajectories_png(
+    title: &str,
+    truth: &[(u64, [f64; 3])],
+    series: &[Series<'_>],
+    marks: &[Mark],
+) -> Vec<u8> {
+    register_font();
+    let (w, h) = SIZE;
+    let mut buf = vec![255u8; (w * h * 3) as usize];
+    {
+        let root = BitMapBackend::with_buffer(&mut buf, (w, h)).into_drawing_area();
+        draw(&root, title, truth, series, marks)
+            .unwrap_or_else(|e| panic!("drawing into a memory buffer: {e}"));
+        root.present()
+            .unwrap_or_else(|e| panic!("drawing into a memory buffer: {e}"));
+    }
+    let img = RgbImage::from_raw(w, h, buf).expect("the buffer is w x h x 3");
+    crate::plot::png(&img)
+}
+
+type Result<T> = std::result::Result<
+    T,
+    DrawingAreaErrorKind<<BitMapBackend<'static> as DrawingBackend>::ErrorType>,
+>;
+
+fn finite(p: &(u64, [f64; 3])) -> bool {
+    p.1.iter().all(|v| v.is_finite())
+}
+
+/// `[lo, hi]` of `values`, widened to at least `min_span` about its centre.
+fn range(values: impl Iterator<Item = f64>, min_span: f64) -> (f64, f64) {
+    let (lo, hi) = values.fold((f64::MAX, f64::MIN), |(a, b), v| (a.min(v), b.max(v)));
+    if lo > hi {
+        return (0.0, min_span);
+    }
+    let mid = 0.5 * (lo + hi);
+    let half = 0.5 * (hi - lo).max(min_span);
+    (mid - half, mid + half)
+}
+
+fn draw(
+    root: &DrawingArea<BitMapBackend<'_>, Shift>,
+    title: &str,
+    truth: &[(u64, [f64; 3])],
+    series: &[Series<'_>],
+    marks: &[Mark],
+) -> Result<()> {
+    root.fill(&WHITE)?;
+    let root = root.titled(title, (FONT, 24))?;
+    let (left, right) = root.split_horizontally(SIZE.1 as i32 - 20);
+    let all = || {
+        truth
+            .iter()
+            .chain(series.iter().flat_map(|s| s.points.iter()))
+            .filter(|p| finite(p))
+    };
+    let style = |k: usize| COLOURS[k % COLOURS.len()].stroke_width(2);
+    let truth_style = BLACK.stroke_width(2);
+
+    // Top view with equal scales: the ranges take the plotting area's aspect ratio.
+    let (label_x, label_y, margin) = (50u32, 70u32, 15u32);
+    let left = left.titled("top view (equal scales)", (FONT, 18))?;
+    let (pw, ph) = left.dim_in_pixel();
+    let (aw, ah) = (
+        (pw - label_y - 2 * margin) as f64,
+        (ph - label_x - 2 * margin) as f64,
+    );
+    let (x0, x1) = range(all().map(|p| p.1[0]), 1.0);
+    let (y0, y1) = range(all().map(|p| p.1[1]), 1.0);
+    let per_px = ((x1 - x0) / aw).max((y1 - y0) / ah) * 1.05;
+    let (cx, cy) = (0.5 * (x0 + x1), 0.5 * (y0 + y1));
+    let (hx, hy) = (0.5 * per_px * aw, 0.5 * per_px * ah);
+    let mut top = ChartBuilder::on(&left)
+        .margin(margin)
+        .x_label_area_size(label_x)
+        .y_label_area_size(label_y)
+        .build_cartesian_2d(cx - hx..cx + hx, cy - hy..cy + hy)?;
+    top.configure_mesh()
+        .x_desc("x east [m]")
+        .y_desc("y north [m]")
+        .label_style((FONT, 14))
+        .axis_desc_style((FONT, 16))
+        .draw()?;
+    let xy = |pts: &[(u64, [f64; 3])]| -> Vec<(f64, f64)> {
+        pts.iter()
+            .filter(|p| finite(p))
+            .map(|p| (p.1[0], p.1[1]))
+            .collect()
+    };
+    for (k, s) in series.iter().enumerate() {
+        top.draw_series(LineSeries::new(xy(s.points), style(k)))?;
+    }
+    top.draw_series(LineSeries::new(xy(truth), truth_style))?;
+    if let Some(start) = truth.iter().find(|p| finite(p)) {
+        top.draw_series(std::iter::once(Circle::new(
+            (start.1[0], start.1[1]),
+            5,
+            BLACK.filled(),
+        )))?;
+    }
+
+    // Altitude against time, with the events.
+    let secs = |t: u64| t as f64 * 1e-9;
+    let (t0, t1) = range(all().map(|p| secs(p.0)), 1.0);
+    let (z0, z1) = range(all().map(|p| p.1[2]), 2.0);
+    let pad = 0.05 * (z1 - z0);
+    let right = right.titled("altitude", (FONT, 18))?;
+    let mut alt = ChartBuilder::on(&right)
+        .margin(margin)
+        .x_label_area_size(label_x)
+        .y_label_area_size(label_y)
+        .build_cartesian_2d(t0.min(0.0)..t1, z0 - pad..z1 + pad)?;
+    alt.configure_mesh()
+        .x_desc("time [s]")
+        .y_desc("z up [m]")
+        .label_style((FONT, 14))
+        .axis_desc_style((FONT, 16))
+        .draw()?;
+    let tz = |pts: &[(u64, [f64; 3])]| -> Vec<(f64, f64)> {
+        pts.iter()
+            .filter(|p| finite(p))
+            .map(|p| (secs(p.0), p.1[2]))
+            .collect()
+    };
+    for (k, s) in series.iter().enumerate() {
+        alt.draw_series(LineSeries::new(tz(s.points), style(k)))?
+            .label(s.label)
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 24, y)], style(k)));
+    }
+    alt.draw_series(LineSeries::new(tz(truth), truth_style))?
+        .label("truth")
+        .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 24, y)], truth_style));
+    let grey = RGBColor(120, 120, 120);
+    for (t, label) in marks.iter().filter(|m| m.0.is_finite()) {
+        alt.draw_series(LineSeries::new(
+            [(*t, z0 - pad), (*t, z1 + pad)],
+            grey.stroke_width(1),
+        ))?;
+        // At the foot of the line (the legend sits at the top left).
+        alt.draw_series(std::iter::once(Text::new(
+            format!(" {label}"),
+            (*t, z0 - pad + 0.06 * (z1 - z0)),
+            (FONT, 13).into_font().color(&grey),
+        )))?;
+    }
+    alt.configure_series_labels()
+        .position(SeriesLabelPosition::UpperLeft)
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK)
+        .label_font((FONT, 15))
+        .draw()?;
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn decode(png: &[u8]) -> RgbImage {
+        image::load_from_memory(png).unwrap().to_rgb8()
+    }
+
+    fn count(img: &RgbImage, c: RGBColor) -> usize {
+        img.pixels().filter(|p| p.0 == [c.0, c.1, c.2]).count()
+    }
+
+    #[test]
+    fn every_series_the_truth_and_the_labels_are_drawn() {
+        let truth: Vec<(u64, [f64; 3])> = (0..50)
+            .map(|k| (k * 1_000_000_000, [k as f64, 0.0, 10.0]))
+            .collect();
+        let a: Vec<_> = truth.iter().map(|(t, p)| (*t, [p[0], 2.0, 11.0])).collect();
+        let b: Vec<_> = truth.iter().map(|(t, p)| (*t, [p[0], -2.0, 9.0])).collect();
+        let series = [
+            Series {
+                label: "VO",
+                points: &a,
+            },
+            Series {
+                label: "SLAM",
+                points: &b,
+            },
+        ];
+        let with = decode(&trajectories_png(
+            "test",
+            &truth,
+            &series,
+            &[(20.0, "event".into())],
+        ));
+        assert_eq!(with.dimensions(), SIZE);
+        // Two panels of 2-pixel lines about 50 m long: hundreds of pixels of each colour.
+        assert!(count(&with, COLOURS[0]) > 400, "the first series");
+        assert!(count(&with, COLOURS[1]) > 400, "the second series");
+        assert!(count(&with, BLACK) > 400, "the truth, axes and text");
+        // Text is drawn: a figure without the title, labels and legend has fewer dark pixels.
+        let without = decode(&trajectories_png("", &truth, &[], &[]));
+        let dark = |img: &RgbImage| {
+            img.pixels()
+                .filter(|p| p.0.iter().all(|v| *v < 100))
+                .count()
+        };
+        assert!(dark(&with) > dark(&without));
+    }
+
+    #[test]
+    fn the_top_view_keeps_equal_scales() {
+        // A 50 m square as a series: in a panel that is not square, unequal scales would
+        // draw it as a rectangle.
+        let square: Vec<(u64, [f64; 3])> = [
+            [0.0, 0.0],
+            [50.0, 0.0],
+            [50.0, 50.0],
+            [0.0, 50.0],
+            [0.0, 0.0],
+        ]
+        .iter()
+        .enumerate()
+        .map(|(k, p)| (k as u64 * 1_000_000_000, [p[0], p[1], 0.0]))
+        .collect();
+        let series = [Series {
+            label: "square",
+            points: &square,
+        }];
+        let img = decode(&trajectories_png("", &[], &series, &[]));
+        let left_panel = SIZE.1 - 20;
+        let (mut x0, mut x1, mut y0, mut y1) = (u32::MAX, 0, u32::MAX, 0);
+        for (x, y, p) in img.enumerate_pixels() {
+            if x < left_panel && p.0 == [COLOURS[0].0, COLOURS[0].1, COLOURS[0].2] {
+                (x0, x1, y0, y1) = (x0.min(x), x1.max(x), y0.min(y), y1.max(y));
+            }
+        }
+        let (wide, tall) = (x1 - x0, y1 - y0);
+        assert!(wide > 200, "the square fills the panel: {wide} px");
+        assert!(wide.abs_diff(tall) <= 3, "{wide} x {tall} px");
+    }
+
+    #[test]
+    fn non_finite_points_are_left_out() {
+        let truth = vec![
+            (0, [0.0, 0.0, 0.0]),
+            (1_000_000_000, [f64::NAN, 1.0, 1.0]),
+            (2_000_000_000, [2.0, 2.0, f64::INFINITY]),
+            (3_000_000_000, [3.0, 3.0, 3.0]),
+        ];
+        let img = decode(&trajectories_png(
+            "nan",
+            &truth,
+            &[],
+            &[(f64::NAN, "x".into())],
+        ));
+        assert_eq!(img.dimensions(), SIZE);
+    }
+}
