@@ -264,6 +264,25 @@ pub fn compound(
     (a * b, j * cov_a * j.transpose() + cov_b)
 }
 
+/// A measured `z = T_i⁻¹ T_o` where `T_o = T_k a` is known only through `a`, node `k`'s pose of
+/// the point `o` (a robot's frame between two of its origins): returns the measurement of
+/// `T_i⁻¹ T_k`, `z a⁻¹`, with the covariance of its perturbation from `z`'s and `a`'s
+/// (independent, right perturbations), first order.
+pub fn through(
+    z: &Isometry3<f64>,
+    cov_z: &Matrix6<f64>,
+    a: &Isometry3<f64>,
+    cov_a: &Matrix6<f64>,
+) -> (Isometry3<f64>, Matrix6<f64>) {
+    let out = z * a.inverse();
+    let j_z = numeric(|d| log(&(out.inverse() * (z * exp(d) * a.inverse()))));
+    let j_a = numeric(|d| log(&(out.inverse() * (z * (a * exp(d)).inverse()))));
+    (
+        out,
+        j_z * cov_z * j_z.transpose() + j_a * cov_a * j_a.transpose(),
+    )
+}
+
 /// The information of a relative pose measured with deviation `sigma_m` on each position
 /// axis and `sigma_rad` on each rotation axis.
 pub fn relative_info(sigma_m: f64, sigma_rad: f64) -> Matrix6<f64> {

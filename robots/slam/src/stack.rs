@@ -51,7 +51,7 @@
 //! `vo/<robot>.tum`. With `cooperative` off there are no events and no radio.
 
 use crate::ekf::{LocalMap, Update};
-use crate::global::{relative_info, Global, Link, Share};
+use crate::global::{relative_info, Anchor, Global, Link, Share};
 use crate::idp::Sensor;
 use crate::lines::LinePrior;
 use crate::report::{SlamEvent, SlamReport, REPORT_ARTIFACT};

@@ -177,18 +177,58 @@ impl SlamCore {
         self.last_share_ns = Some(now_ns);
     }
 
-    /// Another robot's part arrived.
+    /// Another robot's part arrived. If its links name frames of this robot that are not
+    /// origins (the other robot saw this one, which did not see it then: a partial
+    /// rendezvous), this robot publishes those frames as anchors, which resolves the links:
+    /// for this robot that is the event, logged with the error before and after it.
     pub(super) fn receive(&mut self, d: &Delivered) {
         let Ok(share) = serde_json::from_slice::<Share>(&d.payload) else {
             self.count("shares_malformed", 1);
             return;
         };
-        let Some(g) = self.global.as_mut() else {
+        if self.global.is_none() {
             return;
-        };
-        self.peers.insert(share.robot.clone());
-        if g.receive(share) {
-            g.optimize();
+        }
+        let before = (self.world_pose(), self.frame().to_string());
+        let sender = share.robot.clone();
+        let kinds: BTreeMap<u64, String> = share
+            .links
+            .iter()
+            .map(|l| (l.other_stamp_ns, l.kind.clone()))
+            .collect();
+        let g = self.global.as_mut().expect("checked above");
+        self.peers.insert(sender.clone());
+        let changed = g.receive(share);
+        let mut anchored = None;
+        for stamp in g.wanted_anchors() {
+            // The frame at that stamp (frames are in stamp order); a stamp of no frame (before
+            // the first pair, or between frames) cannot be anchored and stays unresolved.
+            let Ok(i) = self.trajectory.binary_search_by_key(&stamp, |f| f.0) else {
+                continue;
+            };
+            let (_, node, pose, cov) = self.trajectory[i];
+            g.anchor(Anchor {
+                stamp_ns: stamp,
+                node,
+                pose,
+                cov,
+            });
+            anchored = Some(stamp);
+        }
+        match anchored {
+            Some(stamp) => {
+                let kind = kinds
+                    .get(&stamp)
+                    .cloned()
+                    .unwrap_or_else(|| "rendezvous".into());
+                let at = self.trajectory.last().map_or(stamp, |f| f.0);
+                self.count("anchors", 1);
+                self.after_event(&kind, &sender, at, before);
+            }
+            None if changed => {
+                g.optimize();
+            }
+            None => {}
         }
         self.count("shares_received", 1);
     }
