@@ -102,7 +102,21 @@ fn draw(
 ) -> Result<()> {
     root.fill(&WHITE)?;
     let root = root.titled(title, (FONT, 24))?;
-    let (left, right) = root.split_horizontally(SIZE.1 as i32 - 20);
+    // The legend in a strip of its own under the title: it never hides data or marks.
+    let (strip, root) = root.split_vertically(34);
+    let entries: Vec<(&str, ShapeStyle)> = series
+        .iter()
+        .enumerate()
+        .map(|(k, s)| (s.label, COLOURS[k % COLOURS.len()].stroke_width(3)))
+        .chain(std::iter::once(("truth", BLACK.stroke_width(3))))
+        .collect();
+    let mut x = 90;
+    for (label, style) in &entries {
+        strip.draw(&PathElement::new(vec![(x, 17), (x + 30, 17)], *style))?;
+        strip.draw(&Text::new(label.to_string(), (x + 38, 8), (FONT, 16)))?;
+        x += 70 + 9 * label.chars().count() as i32;
+    }
+    let (left, right) = root.split_horizontally(SIZE.1 as i32 - 20 - 34);
     let all = || {
         truth
             .iter()
@@ -178,32 +192,23 @@ fn draw(
             .collect()
     };
     for (k, s) in series.iter().enumerate() {
-        alt.draw_series(LineSeries::new(tz(s.points), style(k)))?
-            .label(s.label)
-            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 24, y)], style(k)));
+        alt.draw_series(LineSeries::new(tz(s.points), style(k)))?;
     }
-    alt.draw_series(LineSeries::new(tz(truth), truth_style))?
-        .label("truth")
-        .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 24, y)], truth_style));
-    let grey = RGBColor(120, 120, 120);
-    for (t, label) in marks.iter().filter(|m| m.0.is_finite()) {
+    alt.draw_series(LineSeries::new(tz(truth), truth_style))?;
+    let grey = RGBColor(110, 110, 110);
+    for (k, (t, label)) in marks.iter().filter(|m| m.0.is_finite()).enumerate() {
         alt.draw_series(LineSeries::new(
             [(*t, z0 - pad), (*t, z1 + pad)],
             grey.stroke_width(1),
         ))?;
-        // At the foot of the line (the legend sits at the top left).
+        // Labels in three rows from the top, so that events seconds apart stay legible.
+        let row = (k % 3) as f64;
         alt.draw_series(std::iter::once(Text::new(
             format!(" {label}"),
-            (*t, z0 - pad + 0.06 * (z1 - z0)),
+            (*t, z1 + pad - (0.01 + 0.045 * row) * (z1 - z0 + 2.0 * pad)),
             (FONT, 13).into_font().color(&grey),
         )))?;
     }
-    alt.configure_series_labels()
-        .position(SeriesLabelPosition::UpperLeft)
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK)
-        .label_font((FONT, 15))
-        .draw()?;
     Ok(())
 }
 
@@ -280,7 +285,8 @@ mod tests {
         let left_panel = SIZE.1 - 20;
         let (mut x0, mut x1, mut y0, mut y1) = (u32::MAX, 0, u32::MAX, 0);
         for (x, y, p) in img.enumerate_pixels() {
-            if x < left_panel && p.0 == [COLOURS[0].0, COLOURS[0].1, COLOURS[0].2] {
+            // Below the title and the legend strip (whose sample line has the colour too).
+            if x < left_panel && y > 70 && p.0 == [COLOURS[0].0, COLOURS[0].1, COLOURS[0].2] {
                 (x0, x1, y0, y1) = (x0.min(x), x1.max(x), y0.min(y), y1.max(y));
             }
         }
