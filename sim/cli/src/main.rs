@@ -132,11 +132,17 @@ enum Cmd {
         #[arg(long)]
         shard: Option<String>,
     },
-    /// Write results/coverage-tables.md and its figures (`hetsim report coverage`): runs or
-    /// resumes the table1 and table2 sweeps first.
+    /// Write results/coverage-tables.md and its figures (`hetsim report coverage`: runs or
+    /// resumes the table1 and table2 sweeps first), or a village run's results page
+    /// (`hetsim report village RUN_DIR`: results/village/ from the run's folder).
     Report {
-        /// What to report: `coverage`.
+        /// What to report: `coverage` or `village`.
         what: String,
+        /// `village`: the results folder of the run to report.
+        run: Option<PathBuf>,
+        /// `village`: where to write the page (default: results/village).
+        #[arg(long)]
+        out: Option<PathBuf>,
         /// Parallel runs (default: all cores).
         #[arg(long)]
         jobs: Option<usize>,
@@ -287,7 +293,12 @@ fn real_main() -> Result<()> {
                 println!("ok: {}", f.display());
             }
         }
-        Cmd::Report { what, jobs } => study::report(&what, jobs)?,
+        Cmd::Report {
+            what,
+            run,
+            out,
+            jobs,
+        } => study::report(&what, run, out, jobs)?,
         Cmd::Sweep {
             target,
             more,

@@ -13,10 +13,29 @@ fn default_jobs(jobs: Option<usize>) -> usize {
 }
 
 /// `hetsim report coverage`.
-pub fn report(what: &str, jobs: Option<usize>) -> Result<()> {
+pub fn report(
+    what: &str,
+    run: Option<PathBuf>,
+    out: Option<PathBuf>,
+    jobs: Option<usize>,
+) -> Result<()> {
+    if what == "village" {
+        let run = run.context(
+            "hetsim report village RUN_DIR: name the results folder of a village run \
+             (`hetsim run scenarios/village.toml` prints it as `results: <dir>`)",
+        )?;
+        let out = out.unwrap_or_else(|| PathBuf::from("results/village"));
+        let path = hetsim_eval::village::village_report(&run, &out)?;
+        println!("results: {}", path.display());
+        return Ok(());
+    }
     anyhow::ensure!(
         what == "coverage",
-        "unknown report {what:?}: the only report is `coverage`"
+        "unknown report {what:?}: the reports are `coverage` and `village RUN_DIR`"
+    );
+    anyhow::ensure!(
+        run.is_none() && out.is_none(),
+        "hetsim report coverage takes no run folder and no --out: it writes results/coverage-tables.md"
     );
     let bar = progress_bar("report");
     let path = hetsim_eval::report::coverage_report(

@@ -21,6 +21,7 @@ pub mod stats;
 pub mod sweep;
 pub mod team;
 pub mod trajectory;
+pub mod village;
 
 pub use metrics::{Metrics, RobotMetrics};
 pub use results::{write_run, RunFiles};

@@ -1,0 +1,353 @@
+//! `hetsim report village RUN`: a village run's results as a page a reader can take in, for
+//! `results/village/`: the accuracy of every estimate, the SLAM events with the errors before
+//! and after them, the filters' consistency and counters, the radio, the run's speed, and the
+//! Fig. 7 figures, all read from the run folder `hetsim run` wrote (nothing is re-run).
+
+use crate::EvalError;
+use hetsim_core::files::{write_dir_atomic, FileError};
+use serde_json::Value;
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+/// Reads `name` in the run folder as JSON.
+fn read_json(run: &Path, name: &str) -> Result<Value, EvalError> {
+    let path = run.join(name);
+    let bytes = std::fs::read(&path).map_err(FileError::at(&path))?;
+    serde_json::from_slice(&bytes).map_err(|e| EvalError::Content {
+        path,
+        message: format!("line {}: not JSON: {e}", e.line()),
+    })
+}
+
+/// A field of a JSON document by its dotted path, or an error naming the file and the field.
+fn field<'a>(doc: &'a Value, path: &Path, dotted: &str) -> Result<&'a Value, EvalError> {
+    dotted
+        .split('.')
+        .try_fold(doc, |v, key| v.get(key))
+        .ok_or_else(|| EvalError::Content {
+            path: path.to_path_buf(),
+            message: format!("no field `{dotted}` (is this a village run's results folder?)"),
+        })
+}
+
+fn num(doc: &Value, path: &Path, dotted: &str) -> Result<f64, EvalError> {
+    field(doc, path, dotted)?
+        .as_f64()
+        .ok_or_else(|| EvalError::Content {
+            path: path.to_path_buf(),
+            message: format!("field `{dotted}` is not a number"),
+        })
+}
+
+/// Writes the report of the village run in `run` as the folder `out` (replaced whole,
+/// atomically): `README.md`, the run's `metrics.json` and `manifest.json`, and its Fig. 7
+/// figures. Returns `out`.
+pub fn village_report(run: &Path, out: &Path) -> Result<PathBuf, EvalError> {
+    let metrics_path = run.join("metrics.json");
+    let metrics = read_json(run, "metrics.json")?;
+    let manifest = read_json(run, "manifest.json")?;
+    let manifest_path = run.join("manifest.json");
+    // Wall time is outside the digest (timing.json); a run without it still reports.
+    let timing = read_json(run, "timing.json").ok();
+    let slam = field(&metrics, &metrics_path, "slam.robots")?
+        .as_object()
+        .ok_or_else(|| EvalError::Content {
+            path: metrics_path.clone(),
+            message: "field `slam.robots` is not a table of robots".into(),
+        })?;
+    let robots: Vec<&String> = slam.keys().collect();
+
+    let mut md = String::new();
+    let scenario = field(&manifest, &manifest_path, "scenario")
+        .ok()
+        .and_then(|s| s.get("name").or(Some(s)))
+        .and_then(Value::as_str)
+        .unwrap_or("village");
+    let _ = writeln!(md, "# {scenario}: the cooperative SLAM run\n");
+    let _ = writeln!(
+        md,
+        "Written by `hetsim report village {}` from the run's `metrics.json` (copied here); \
+         every figure below is computed by the evaluation from the robots' published \
+         estimates against the simulator's truth.\n",
+        run.display()
+    );
+    let _ = writeln!(md, "| | |\n|---|---|");
+    let seed = field(&manifest, &manifest_path, "seed")?;
+    let _ = writeln!(md, "| seed | {seed} |");
+    let _ = writeln!(
+        md,
+        "| sim time | {:.1} s |",
+        num(&metrics, &metrics_path, "sim_secs")?
+    );
+    if let Some(t) = &timing {
+        let wall = t.get("wall_secs").and_then(Value::as_f64);
+        let rtf = t.get("realtime_factor").and_then(Value::as_f64);
+        let threads = t.get("threads").and_then(Value::as_u64);
+        if let (Some(wall), Some(rtf)) = (wall, rtf) {
+            let _ = writeln!(
+                md,
+                "| wall time | {wall:.1} s ({rtf:.2}x real time{}) |",
+                threads.map_or(String::new(), |n| format!(", {n} threads"))
+            );
+        }
+    }
+    if let Some(a) = manifest.get("adapter").filter(|a| !a.is_null()) {
+        let s = |k: &str| a.get(k).and_then(Value::as_str).unwrap_or("?");
+        let _ = writeln!(
+            md,
+            "| adapter | {} ({}, {}) |",
+            s("name"),
+            s("backend"),
+            s("driver")
+        );
+    }
+    let digest = field(&manifest, &manifest_path, "digest")?;
+    let _ = writeln!(md, "| digest | `{}` |", digest.as_str().unwrap_or("?"));
+
+    // The truth rule: what the robots were given that they could not have had.
+    let oracles = manifest
+        .get("oracles")
+        .and_then(Value::as_array)
+        .cloned()
+        .unwrap_or_default();
+    if !oracles.is_empty() {
+        let _ = writeln!(
+            md,
+            "\n## Oracles in this run\n\nThe manifest lists what reached a robot from the \
+             simulator's truth. A figure that rests on one is not earned by the robot \
+             software.\n"
+        );
+        let mut image_match = false;
+        for o in &oracles {
+            let s = |k: &str| o.get(k).and_then(Value::as_str).unwrap_or("?");
+            image_match |= s("kind") == "image_match";
+            let _ = writeln!(
+                md,
+                "- `{}/{}` ({}): {}",
+                s("robot"),
+                s("sensor"),
+                s("kind"),
+                s("gives")
+            );
+        }
+        if image_match {
+            let _ = writeln!(
+                md,
+                "\nThe `image_match` events below come from that oracle: the truth chooses \
+                 the key frame and measures the relative pose. Their corrections, and \
+                 whatever the team's graph carries from them to the other robot, rest on \
+                 truth; the rendezvous events come from a sensor with an honest noise model \
+                 and do not. The `oracle_pose` sensors drive the waypoint pilots only; the \
+                 SLAM stacks never read them (tests/tests/oracle.rs)."
+            );
+        }
+    }
+    let _ = writeln!(
+        md,
+        "\n## Accuracy\n\nATE after SE(3) alignment of the whole trajectory (as evo's \
+         `evo_ape --align`), RPE over 1 s, and the error of the last pose without alignment. \
+         `slam` is the cooperative estimate (events and the radio), `slam-open` the chain of \
+         sub-maps without events, `vo` the chained stereo VO.\n"
+    );
+    let _ = writeln!(
+        md,
+        "| robot | estimate | path length m | ATE m | RPE 1 s m | final error m |\n|---|---|---|---|---|---|"
+    );
+    for robot in &robots {
+        for kind in ["slam", "slam-open", "vo"] {
+            let key = format!("estimates.{kind}/{robot}");
+            let Ok(e) = field(&metrics, &metrics_path, &key) else {
+                continue;
+            };
+            let f = |k: &str| e.get(k).and_then(Value::as_f64).unwrap_or(f64::NAN);
+            let _ = writeln!(
+                md,
+                "| {robot} | {kind} | {:.1} | {:.3} | {:.4} | {:.3} |",
+                f("length_m"),
+                f("ate_m"),
+                f("rpe_1s_m"),
+                f("final_error_m")
+            );
+        }
+    }
+
+    let _ = writeln!(
+        md,
+        "\n## Events\n\nEach event as the robot's SLAM handled it, with the robot's position \
+         error (and altitude error) against the truth just before it and just after the \
+         team's graph was optimized with it.\n"
+    );
+    let _ = writeln!(
+        md,
+        "| robot | kind | time s | with | error before -> after m | altitude error before -> after m |\n|---|---|---|---|---|---|"
+    );
+    for robot in &robots {
+        let events = slam[*robot]
+            .get("events")
+            .and_then(Value::as_array)
+            .cloned()
+            .unwrap_or_default();
+        for e in &events {
+            let f = |k: &str| e.get(k).and_then(Value::as_f64).unwrap_or(f64::NAN);
+            let s = |k: &str| e.get(k).and_then(Value::as_str).unwrap_or("");
+            let _ = writeln!(
+                md,
+                "| {robot} | {} | {:.1} | {} | {:.3} -> {:.3} | {:.3} -> {:.3} |",
+                s("kind"),
+                f("time_s"),
+                s("other"),
+                f("error_before_m"),
+                f("error_after_m"),
+                f("altitude_error_before_m"),
+                f("altitude_error_after_m")
+            );
+        }
+    }
+
+    let _ = writeln!(
+        md,
+        "\n## The filters\n\nMean NEES of the robot pose over the run (6 degrees of freedom: \
+         6 expected of a consistent estimate; one run's poses are correlated in time, so \
+         Monte Carlo runs, not this mean alone, decide consistency), and the stacks' \
+         counters.\n"
+    );
+    let _ = writeln!(
+        md,
+        "| robot | NEES mean | poses | sub-maps | point observations used / gated | line observations used / gated | lines initialized | unresolved links | graph shares sent / received |\n|---|---|---|---|---|---|---|---|---|"
+    );
+    for robot in &robots {
+        let r = &slam[*robot];
+        let c = |k: &str| {
+            r.get("counters")
+                .and_then(|c| c.get(k))
+                .and_then(Value::as_u64)
+                .unwrap_or(0)
+        };
+        let f = |k: &str| r.get(k).and_then(Value::as_f64).unwrap_or(f64::NAN);
+        let _ = writeln!(
+            md,
+            "| {robot} | {:.2} | {} | {} | {} / {} | {} / {} | {} | {} | {} / {} |",
+            f("nees_mean"),
+            f("nees_poses"),
+            f("submaps"),
+            c("observations_used"),
+            c("observations_gated"),
+            c("line_observations_used"),
+            c("line_observations_gated"),
+            c("lines_initialized"),
+            c("unresolved_links"),
+            c("shares_sent"),
+            c("shares_received"),
+        );
+    }
+    if let Ok(comms) = field(&metrics, &metrics_path, "comms") {
+        let _ = writeln!(
+            md,
+            "\nRadio: {}\n",
+            comms
+                .as_object()
+                .map(|o| o
+                    .iter()
+                    .map(|(k, v)| format!("{k} {v}"))
+                    .collect::<Vec<_>>()
+                    .join(", "))
+                .unwrap_or_default()
+        );
+    }
+
+    let mut files = vec![
+        (
+            "metrics.json".to_string(),
+            std::fs::read(&metrics_path).map_err(FileError::at(&metrics_path))?,
+        ),
+        (
+            "manifest.json".to_string(),
+            std::fs::read(&manifest_path).map_err(FileError::at(&manifest_path))?,
+        ),
+    ];
+    let _ = writeln!(
+        md,
+        "## Figures\n\nFig. 7 of seed 000 per robot: the top view at equal scales, and the \
+         altitude against time with the events marked.\n"
+    );
+    for robot in &robots {
+        let name = format!("fig7-{robot}.png");
+        let path = run.join("plots").join(&name);
+        let bytes = std::fs::read(&path).map_err(FileError::at(&path))?;
+        let _ = writeln!(md, "![Fig. 7, {robot}]({name})\n");
+        files.push((name, bytes));
+    }
+    files.push(("README.md".to_string(), md.into_bytes()));
+    write_dir_atomic(out, &files, |_| Ok(()))?;
+    Ok(out.to_path_buf())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn run_folder(dir: &Path, metrics: &Value) {
+        std::fs::create_dir_all(dir.join("plots")).unwrap();
+        std::fs::write(dir.join("metrics.json"), metrics.to_string()).unwrap();
+        let manifest = serde_json::json!({"scenario": {"name": "village"}, "seed": 3, "digest": "ab",
+            "oracles": [{"kind": "image_match", "robot": "ressac", "sensor": "image_match", "gives": "truth"}]});
+        std::fs::write(dir.join("manifest.json"), manifest.to_string()).unwrap();
+        std::fs::write(dir.join("plots/fig7-dala.png"), b"png").unwrap();
+    }
+
+    #[test]
+    fn the_page_holds_the_runs_figures() {
+        let tmp = tempfile::tempdir().unwrap();
+        let run = tmp.path().join("run");
+        let metrics = serde_json::json!({
+            "sim_secs": 600.0,
+            "estimates": {"slam/dala": {"length_m": 224.7, "ate_m": 2.144, "rpe_1s_m": 0.004, "final_error_m": 7.678}},
+            "slam": {"robots": {"dala": {
+                "nees_mean": 2.47, "nees_poses": 5999, "submaps": 32,
+                "events": [{"kind": "rendezvous", "time_s": 380.5, "other": "ressac",
+                            "error_before_m": 7.2765, "error_after_m": 7.2765,
+                            "altitude_error_before_m": 0.58, "altitude_error_after_m": 0.58}],
+                "counters": {"unresolved_links": 3}}}},
+            "comms": {"sent": 242}
+        });
+        run_folder(&run, &metrics);
+        let out = tmp.path().join("village");
+        village_report(&run, &out).unwrap();
+        let md = std::fs::read_to_string(out.join("README.md")).unwrap();
+        assert!(
+            md.contains("| dala | slam | 224.7 | 2.144 | 0.0040 | 7.678 |"),
+            "{md}"
+        );
+        assert!(
+            md.contains("| dala | rendezvous | 380.5 | ressac | 7.277 -> 7.277 |"),
+            "{md}"
+        );
+        assert!(md.contains("| dala | 2.47 | 5999 | 32 |"), "{md}");
+        assert!(md.contains("| 3 | 0 / 0 |"), "unresolved links: {md}");
+        assert!(md.contains("![Fig. 7, dala](fig7-dala.png)"));
+        assert!(
+            md.contains("- `ressac/image_match` (image_match): truth"),
+            "{md}"
+        );
+        assert!(md.contains("rest on truth"), "{md}");
+        assert_eq!(std::fs::read(out.join("fig7-dala.png")).unwrap(), b"png");
+    }
+
+    #[test]
+    fn a_folder_that_is_no_village_run_is_refused_by_name_and_nothing_is_written() {
+        let tmp = tempfile::tempdir().unwrap();
+        let run = tmp.path().join("run");
+        run_folder(&run, &serde_json::json!({"sim_secs": 1.0}));
+        let out = tmp.path().join("village");
+        let err = village_report(&run, &out).unwrap_err().to_string();
+        assert!(
+            err.contains("metrics.json") && err.contains("slam.robots"),
+            "{err}"
+        );
+        assert!(!out.exists());
+        let err = village_report(&tmp.path().join("none"), &out)
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("metrics.json"), "{err}");
+    }
+}
