@@ -296,19 +296,32 @@ mod tests {
     }
 
     #[test]
-    fn non_finite_points_are_left_out() {
-        let truth = vec![
-            (0, [0.0, 0.0, 0.0]),
-            (1_000_000_000, [f64::NAN, 1.0, 1.0]),
-            (2_000_000_000, [2.0, 2.0, f64::INFINITY]),
-            (3_000_000_000, [3.0, 3.0, 3.0]),
-        ];
+    fn non_finite_points_are_left_out_and_the_rest_is_drawn() {
+        // A series whose middle is not finite: the finite parts are still drawn, on axes that
+        // the non-finite values do not stretch (a NaN or infinity in the range would leave
+        // nothing on the canvas).
+        let points: Vec<(u64, [f64; 3])> = (0..40)
+            .map(|k| {
+                let p = [k as f64, (k as f64).sin(), 10.0 + 0.1 * k as f64];
+                let p = match k {
+                    10 => [f64::NAN, p[1], p[2]],
+                    20 => [p[0], p[1], f64::INFINITY],
+                    _ => p,
+                };
+                (k * 1_000_000_000, p)
+            })
+            .collect();
+        let series = [Series {
+            label: "gappy",
+            points: &points,
+        }];
         let img = decode(&trajectories_png(
             "nan",
-            &truth,
             &[],
+            &series,
             &[(f64::NAN, "x".into())],
         ));
         assert_eq!(img.dimensions(), SIZE);
+        assert!(count(&img, COLOURS[0]) > 400, "the finite points are drawn");
     }
 }

@@ -47,8 +47,13 @@ pub fn village_report(run: &Path, out: &Path) -> Result<PathBuf, EvalError> {
     let metrics = read_json(run, "metrics.json")?;
     let manifest = read_json(run, "manifest.json")?;
     let manifest_path = run.join("manifest.json");
-    // Wall time is outside the digest (timing.json); a run without it still reports.
-    let timing = read_json(run, "timing.json").ok();
+    // Wall time is outside the digest (timing.json): a run without it still reports, but
+    // one whose timing.json is there and unreadable is refused like any other file.
+    let timing = if run.join("timing.json").exists() {
+        Some(read_json(run, "timing.json")?)
+    } else {
+        None
+    };
     let slam = field(&metrics, &metrics_path, "slam.robots")?
         .as_object()
         .ok_or_else(|| EvalError::Content {
@@ -56,6 +61,47 @@ pub fn village_report(run: &Path, out: &Path) -> Result<PathBuf, EvalError> {
             message: "field `slam.robots` is not a table of robots".into(),
         })?;
     let robots: Vec<&String> = slam.keys().collect();
+    // Every robot's section must be whole: a page with a robot's events or counters silently
+    // missing would read as "none happened".
+    for robot in &robots {
+        for (name, ok) in [
+            (
+                "events",
+                slam[*robot].get("events").is_some_and(Value::is_array),
+            ),
+            (
+                "counters",
+                slam[*robot].get("counters").is_some_and(Value::is_object),
+            ),
+            (
+                "nees_mean",
+                slam[*robot].get("nees_mean").is_some_and(Value::is_number),
+            ),
+            (
+                "nees_poses",
+                slam[*robot].get("nees_poses").is_some_and(Value::is_number),
+            ),
+            (
+                "submaps",
+                slam[*robot].get("submaps").is_some_and(Value::is_number),
+            ),
+        ] {
+            if !ok {
+                return Err(EvalError::Content {
+                    path: metrics_path.clone(),
+                    message: format!(
+                        "field `slam.robots.{robot}.{name}` is missing or of the wrong type"
+                    ),
+                });
+            }
+        }
+    }
+    // Whether any correction came from the emulated image matcher (an oracle).
+    let oracle_matches = robots.iter().any(|r| {
+        slam[*r]["events"]
+            .as_array()
+            .is_some_and(|e| e.iter().any(|e| e["kind"] == "image_match"))
+    });
 
     let mut md = String::new();
     let scenario = field(&manifest, &manifest_path, "scenario")
@@ -138,7 +184,9 @@ pub fn village_report(run: &Path, out: &Path) -> Result<PathBuf, EvalError> {
                  whatever the team's graph carries from them to the other robot, rest on \
                  truth; the rendezvous events come from a sensor with an honest noise model \
                  and do not. The `oracle_pose` sensors drive the waypoint pilots only; the \
-                 SLAM stacks never read them (tests/tests/oracle.rs)."
+                 SLAM stacks never read them \
+                 (`tests/tests/slam.rs`, \
+                 `the_slam_stack_computes_the_same_bytes_with_the_truth_withheld`)."
             );
         }
     }
@@ -151,7 +199,7 @@ pub fn village_report(run: &Path, out: &Path) -> Result<PathBuf, EvalError> {
     );
     let _ = writeln!(
         md,
-        "| robot | estimate | path length m | ATE m | RPE 1 s m | final error m |\n|---|---|---|---|---|---|"
+        "| robot | estimate | path length m | ATE m | RPE 1 s m | final error m | rests on an oracle |\n|---|---|---|---|---|---|---|"
     );
     for robot in &robots {
         for kind in ["slam", "slam-open", "vo"] {
@@ -160,9 +208,16 @@ pub fn village_report(run: &Path, out: &Path) -> Result<PathBuf, EvalError> {
                 continue;
             };
             let f = |k: &str| e.get(k).and_then(Value::as_f64).unwrap_or(f64::NAN);
+            // The cooperative estimate carries every event the team's graph holds: with an
+            // image-match oracle's link anywhere in it, every robot's estimate rests on it.
+            let oracle = if kind == "slam" && oracle_matches {
+                "**yes**: the image-match oracle's links"
+            } else {
+                "no"
+            };
             let _ = writeln!(
                 md,
-                "| {robot} | {kind} | {:.1} | {:.3} | {:.4} | {:.3} |",
+                "| {robot} | {kind} | {:.1} | {:.3} | {:.4} | {:.3} | {oracle} |",
                 f("length_m"),
                 f("ate_m"),
                 f("rpe_1s_m"),
@@ -217,11 +272,13 @@ pub fn village_report(run: &Path, out: &Path) -> Result<PathBuf, EvalError> {
     );
     for robot in &robots {
         let r = &slam[*robot];
+        // A counter the stack never incremented is absent: shown as 0 only where the stack
+        // counts it from the start (the graph's unresolved links), "-" otherwise.
         let c = |k: &str| {
             r.get("counters")
                 .and_then(|c| c.get(k))
                 .and_then(Value::as_u64)
-                .unwrap_or(0)
+                .map_or_else(|| "-".to_string(), |n| n.to_string())
         };
         let f = |k: &str| r.get(k).and_then(Value::as_f64).unwrap_or(f64::NAN);
         let _ = writeln!(
@@ -275,6 +332,14 @@ pub fn village_report(run: &Path, out: &Path) -> Result<PathBuf, EvalError> {
         let path = run.join("plots").join(&name);
         let bytes = std::fs::read(&path).map_err(FileError::at(&path))?;
         let _ = writeln!(md, "![Fig. 7, {robot}]({name})\n");
+        if oracle_matches {
+            let _ = writeln!(
+                md,
+                "*{robot}: the cooperative SLAM line includes the corrections of the \
+                 image-match oracle (see \"Oracles in this run\"); the VO and open-loop \
+                 lines do not.*\n"
+            );
+        }
         files.push((name, bytes));
     }
     files.push(("README.md".to_string(), md.into_bytes()));
@@ -323,7 +388,10 @@ mod tests {
             "{md}"
         );
         assert!(md.contains("| dala | 2.47 | 5999 | 32 |"), "{md}");
-        assert!(md.contains("| 3 | 0 / 0 |"), "unresolved links: {md}");
+        assert!(
+            md.contains("| 3 | - / - |"),
+            "unresolved links, absent counters: {md}"
+        );
         assert!(md.contains("![Fig. 7, dala](fig7-dala.png)"));
         assert!(
             md.contains("- `ressac/image_match` (image_match): truth"),
@@ -349,5 +417,70 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(err.contains("metrics.json"), "{err}");
+        // A robot's section with its events missing, or an unreadable timing.json, is refused
+        // by name rather than reported as "no events" or without its wall time.
+        let robot =
+            serde_json::json!({"nees_mean": 1.0, "nees_poses": 1, "submaps": 1, "counters": {}});
+        run_folder(
+            &run,
+            &serde_json::json!({"sim_secs": 1.0, "slam": {"robots": {"dala": robot}}}),
+        );
+        let err = village_report(&run, &out).unwrap_err().to_string();
+        assert!(err.contains("slam.robots.dala.events"), "{err}");
+        let mut whole = robot.clone();
+        whole["events"] = serde_json::json!([]);
+        run_folder(
+            &run,
+            &serde_json::json!({"sim_secs": 1.0, "slam": {"robots": {"dala": whole}}}),
+        );
+        std::fs::write(run.join("timing.json"), b"{ not json").unwrap();
+        let err = village_report(&run, &out).unwrap_err().to_string();
+        assert!(
+            err.contains("timing.json") && err.contains("line 1"),
+            "{err}"
+        );
+        assert!(!out.exists());
+        std::fs::remove_file(run.join("timing.json")).unwrap();
+        assert!(
+            village_report(&run, &out).is_ok(),
+            "without timing.json it reports"
+        );
+    }
+
+    #[test]
+    fn estimates_that_carry_image_match_oracle_links_are_marked() {
+        let tmp = tempfile::tempdir().unwrap();
+        let run = tmp.path().join("run");
+        let event = serde_json::json!({"kind": "image_match", "time_s": 197.0, "other": "dala",
+            "error_before_m": 48.8, "error_after_m": 0.77,
+            "altitude_error_before_m": 38.9, "altitude_error_after_m": 0.2});
+        let robot = |events: serde_json::Value| {
+            serde_json::json!({
+            "nees_mean": 1.0, "nees_poses": 1, "submaps": 1, "counters": {}, "events": events})
+        };
+        let acc = serde_json::json!({"length_m": 1.0, "ate_m": 1.0, "rpe_1s_m": 1.0, "final_error_m": 1.0});
+        let metrics = serde_json::json!({
+            "sim_secs": 600.0,
+            "estimates": {"slam/dala": acc, "vo/dala": acc},
+            "slam": {"robots": {"dala": robot(serde_json::json!([])), "ressac": robot(serde_json::json!([event]))}}
+        });
+        run_folder(&run, &metrics);
+        std::fs::write(run.join("plots/fig7-ressac.png"), b"png").unwrap();
+        let out = tmp.path().join("village");
+        village_report(&run, &out).unwrap();
+        let md = std::fs::read_to_string(out.join("README.md")).unwrap();
+        // Dala made no image match itself, but its cooperative estimate carries Ressac's.
+        assert!(
+            md.contains("| dala | slam | 1.0 | 1.000 | 1.0000 | 1.000 | **yes**"),
+            "{md}"
+        );
+        assert!(
+            md.contains("| dala | vo | 1.0 | 1.000 | 1.0000 | 1.000 | no |"),
+            "{md}"
+        );
+        assert!(
+            md.contains("*dala: the cooperative SLAM line includes"),
+            "{md}"
+        );
     }
 }
