@@ -7,6 +7,8 @@
 //!   partition of the image with at least two tracked landmarks per region;
 //! * [`matching`]: zero-mean normalized cross-correlation (ZNCC) of patches, searched inside a
 //!   predicted ellipse given by the caller's covariance;
+//! * [`place`]: stereo key frames with rotation-invariant binary descriptors (steered BRIEF),
+//!   and the relative pose between two of them (image matching, seed Section V);
 //! * [`segments`]: LSD-class line segment detection, and tracking from a predicted segment;
 //! * [`stereo`]: points matched along the rows of a rectified stereo pair, triangulated to
 //!   3D points in the left camera's optical frame;
@@ -20,6 +22,7 @@ pub mod appearance;
 pub mod harris;
 pub mod image;
 pub mod matching;
+pub mod place;
 pub mod segments;
 pub mod stereo;
 pub mod vo;

@@ -61,7 +61,8 @@ pub fn kabsch(a: &[Vector3<f64>], b: &[Vector3<f64>]) -> Option<Pose> {
     Some(Isometry3::from_parts(Translation3::from(t), rot))
 }
 
-fn skew(v: &Vector3<f64>) -> Matrix3<f64> {
+/// The cross-product matrix `[v]x`.
+pub(crate) fn skew(v: &Vector3<f64>) -> Matrix3<f64> {
     Matrix3::new(0.0, -v.z, v.y, v.z, 0.0, -v.x, -v.y, v.x, 0.0)
 }
 
@@ -201,6 +202,8 @@ pub struct StereoVo {
     half: Option<crate::Gray>,
     /// Disparities the last frame's points spanned, pixels.
     disparities: Option<[f64; 2]>,
+    /// The last frame's stereo points.
+    points: Vec<crate::stereo::StereoPoint>,
     frames: u64,
 }
 
@@ -220,6 +223,7 @@ impl StereoVo {
             max_response: 0.0,
             half: None,
             disparities: None,
+            points: Vec::new(),
             frames: 0,
         }
     }
@@ -235,6 +239,12 @@ impl StereoVo {
     /// filters them rather than detecting again.
     pub fn corners(&self) -> (&[crate::harris::Corner], f32) {
         (&self.corners, self.max_response)
+    }
+
+    /// The stereo points of the last pair (pixel in the left image, 3D point in its optical
+    /// frame): what a key frame is made of ([`crate::place::KeyFrame::new`]).
+    pub fn points(&self) -> &[crate::stereo::StereoPoint] {
+        &self.points
     }
 
     /// Processes a stereo pair; returns the motion since the previous pair (`None` for the
@@ -313,6 +323,7 @@ impl StereoVo {
                 .collect(),
         );
         self.half = Some(half);
+        self.points = points;
         motion
     }
 
