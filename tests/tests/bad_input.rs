@@ -488,22 +488,23 @@ fn coverage_child_without_a_compass() {
 }
 
 #[test]
-fn image_match_with_a_negative_range() {
+fn rendezvous_with_a_negative_range() {
     let text = std::fs::read_to_string(repo().join("scenarios/village-short.toml"))
         .unwrap()
         .replace(
             "duration_secs = 45.0",
             "duration_secs = 45.0\nmodels_dir = \"models\"",
         )
-        .replace(
-            "\"sensors.image_match.min_age_s\" = 15.0",
-            "\"sensors.image_match.range_m\" = -3.0",
+        .replacen(
+            "\"sensors.gps.outages_s\" = [[0.0, 100000.0]] }",
+            "\"sensors.gps.outages_s\" = [[0.0, 100000.0]], \"sensors.rendezvous.range_m\" = -3.0 }",
+            1,
         );
     let (_, e, _d) = load(&text, None);
     assert_names(
         &e,
         "broken.toml",
-        line_of(&text, "image_match.range_m"),
+        line_of(&text, "rendezvous.range_m"),
         "range_m",
         "-3",
         "> 0",

@@ -234,9 +234,10 @@ fn metrics(dir: &std::path::Path) -> serde_json::Value {
 }
 
 /// The short village in lockstep (Dala and Ressac rendered at 512 x 384): a rendezvous just
-/// after the start on both robots, Ressac's image match on Dala's first key frames when it
-/// comes back, the graphs exchanged over the radio; the cooperative estimates beat the open
-/// loop for both robots and the image match pulls Ressac's altitude back.
+/// after the start on both robots; Ressac's own image matcher, with no truth, finds its first
+/// key frames (tied to Dala's by the rendezvous) when it comes back over the start; the graphs
+/// and key frames exchanged over the radio; the cooperative estimates beat the open loop for
+/// both robots and the image match pulls Ressac's altitude back.
 #[test]
 fn cooperative_slam_corrects_ressac_and_keeps_dala_within_one_percent() {
     let dir = tempfile::tempdir().unwrap();
@@ -290,8 +291,33 @@ fn cooperative_slam_corrects_ressac_and_keeps_dala_within_one_percent() {
         rd[0]["time_s"].as_f64().unwrap() < 2.0,
         "just after the start"
     );
+    // The image match is Ressac's, earned from its images (no image-match sensor in the
+    // robot files any more), and a true one: within 2 m and 5 degrees of the true relative
+    // pose (a wrong association lands metres or tens of degrees off), and within its own
+    // covariance (chi-square with 6 degrees of freedom, 99.9 %: 22.46).
+    assert!(
+        !m["messages"]
+            .as_object()
+            .unwrap()
+            .keys()
+            .any(|k| k.contains("image_match")),
+        "an image-match oracle fed the run: {}",
+        m["messages"]
+    );
+    let matches = events("ressac", "image_match");
+    assert!(!matches.is_empty(), "no image match: {slam}");
+    let judged = &slam["robots"]["ressac"]["matching"];
+    assert_eq!(judged["false_matches"], 0, "{judged}");
+    for link in judged["links"].as_array().unwrap() {
+        assert!(link["inliers"].as_u64().unwrap() >= 20, "{link}");
+        assert!(link["nees"].as_f64().unwrap() < 22.46, "{link}");
+    }
     for robot in ["dala", "ressac"] {
         let c = &slam["robots"][robot]["counters"];
+        assert!(
+            c["keyframe_bytes_sent"].as_u64().unwrap() > 0,
+            "{robot}: {c}"
+        );
         assert_eq!(c["unresolved_links"], 0, "{robot}: {c}");
         assert!(c["shares_received"].as_u64().unwrap() >= 2, "{robot}: {c}");
         let nees = slam["robots"][robot]["nees_mean"].as_f64().unwrap();
@@ -328,8 +354,8 @@ fn cooperative_slam_corrects_ressac_and_keeps_dala_within_one_percent() {
         .split(' ')
         .take(3)
         .all(|x| x.parse::<f64>().unwrap().is_finite())));
-    // The image match: Ressac's altitude error drops.
-    // One image match for the pass over Dala's first origins (at most one per robot per 30 s).
+    // The image match: Ressac's altitude error drops. One image match for the pass over its
+    // first origins (at most one per robot per 30 s).
     let im = events("ressac", "image_match");
     assert_eq!(im.len(), 1, "image matches: {slam}");
     let (before, after) = (

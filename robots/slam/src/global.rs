@@ -122,6 +122,9 @@ pub struct Global {
     reference: String,
     /// The frame each part's current node values are in, by robot.
     frames: BTreeMap<String, String>,
+    /// Counts the changes of the graph (its nodes or constraints), for caches of what is
+    /// computed from it.
+    pub version: u64,
 }
 
 impl Global {
@@ -232,8 +235,20 @@ impl Global {
         changed
     }
 
+    /// The joint graph's node of `robot`'s origin made at `stamp_ns`, if that part is here.
+    pub fn index_of(&self, robot: &str, stamp_ns: u64) -> Option<usize> {
+        let part = if robot == self.own.robot {
+            &self.own
+        } else {
+            self.others.get(robot)?
+        };
+        let k = part.stamps.iter().position(|t| *t == stamp_ns)?;
+        self.keys.iter().position(|(r, i)| r == robot && *i == k)
+    }
+
     /// Optimizes the joint graph; returns the final cost.
     pub fn optimize(&mut self) -> f64 {
+        self.version += 1;
         let cost = self.graph.optimize(10);
         for (i, (robot, k)) in self.keys.iter().enumerate() {
             if *robot == self.own.robot {
@@ -254,6 +269,7 @@ impl Global {
     /// measured transforms), a new one takes the values it was sent. Then each component is
     /// anchored and its parts moved into its frame ([`Global::align`]).
     fn rebuild(&mut self) {
+        self.version += 1;
         let current: BTreeMap<(String, usize), Isometry3<f64>> = self
             .keys
             .iter()

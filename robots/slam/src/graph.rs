@@ -218,28 +218,74 @@ impl Graph {
         cost
     }
 
+    /// The joint covariance of the nodes' right perturbations at the current estimate,
+    /// `H⁻¹` (anchors have none); `None` if `H` is not positive definite.
+    pub fn covariance(&self) -> Option<Covariance> {
+        let (blocks, dim) = self.blocks();
+        let cov = if dim == 0 {
+            DMatrix::zeros(0, 0)
+        } else {
+            let (h, _) = self.normal_equations(&blocks, dim);
+            h.cholesky()?.inverse()
+        };
+        Some(Covariance { blocks, cov })
+    }
+
     /// The marginal covariance of every node's right perturbation at the current estimate
     /// (the diagonal blocks of `H⁻¹`; zero for anchors).
     pub fn marginals(&self) -> Vec<Matrix6<f64>> {
-        let (blocks, dim) = self.blocks();
-        let cov = if dim == 0 {
-            None
-        } else {
-            let (h, _) = self.normal_equations(&blocks, dim);
-            h.cholesky().map(|c| c.inverse())
-        };
-        blocks
-            .iter()
-            .map(|b| match (b, &cov) {
-                (Some(b), Some(c)) => Matrix6::from_fn(|i, j| c[(b + i, b + j)]),
-                _ => Matrix6::zeros(),
-            })
-            .collect()
+        match self.covariance() {
+            Some(c) => (0..self.nodes.len()).map(|i| c.block(i, i)).collect(),
+            None => vec![Matrix6::zeros(); self.nodes.len()],
+        }
     }
 }
 
+/// The joint covariance of a graph's nodes ([`Graph::covariance`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Covariance {
+    blocks: Vec<Option<usize>>,
+    cov: DMatrix<f64>,
+}
+
+impl Covariance {
+    /// The cross-covariance of nodes `i` (rows) and `j` (columns); zero if either is an anchor.
+    pub fn block(&self, i: usize, j: usize) -> Matrix6<f64> {
+        match (self.blocks[i], self.blocks[j]) {
+            (Some(a), Some(b)) => Matrix6::from_fn(|r, c| self.cov[(a + r, b + c)]),
+            _ => Matrix6::zeros(),
+        }
+    }
+}
+
+/// The relative pose `a⁻¹ b` of two nodes and the covariance of its right perturbation, to
+/// first order, from their joint covariance (`cov_ab`: rows `a`, columns `b`).
+pub fn relative(
+    (a, cov_a): (&Isometry3<f64>, &Matrix6<f64>),
+    (b, cov_b): (&Isometry3<f64>, &Matrix6<f64>),
+    cov_ab: &Matrix6<f64>,
+) -> (Isometry3<f64>, Matrix6<f64>) {
+    let u = a.inverse() * b;
+    let ja = numeric(|d| log(&(u.inverse() * (a * exp(d)).inverse() * b)));
+    let jb = numeric(|d| log(&(u.inverse() * a.inverse() * b * exp(d))));
+    let c = ja * cov_a * ja.transpose()
+        + jb * cov_b * jb.transpose()
+        + ja * cov_ab * jb.transpose()
+        + jb * cov_ab.transpose() * ja.transpose();
+    (u, (c + c.transpose()) * 0.5)
+}
+
+/// The covariance of the right perturbation of `t⁻¹`, given that of `t`.
+pub fn inverse_covariance(t: &Isometry3<f64>, cov: &Matrix6<f64>) -> Matrix6<f64> {
+    // t⁻¹ Exp(ε) = (t Exp(d))⁻¹: ε = Log(t (t Exp(d))⁻¹).
+    let j = numeric(|d| log(&(t * (t * exp(d)).inverse())));
+    j * cov * j.transpose()
+}
+
 /// Central differences of a function of a 6-vector perturbation, at zero.
-fn numeric<const R: usize>(f: impl Fn(&Vector6<f64>) -> SVector<f64, R>) -> SMatrix<f64, R, 6> {
+pub(crate) fn numeric<const R: usize>(
+    f: impl Fn(&Vector6<f64>) -> SVector<f64, R>,
+) -> SMatrix<f64, R, 6> {
     let mut j = SMatrix::<f64, R, 6>::zeros();
     for k in 0..6 {
         let mut d = Vector6::zeros();
@@ -432,5 +478,67 @@ mod tests {
             rel < 0.05,
             "sampled vs first-order covariance differ by {rel:.3}\n{sample}\n{c}"
         );
+    }
+
+    /// The relative pose of two correlated nodes and its inverse: first-order covariances
+    /// against sampled ones (joint Gaussian perturbations, 20000 draws: a 5 % bound is well
+    /// beyond the sampling error of about 1 % per entry).
+    #[test]
+    fn relative_and_inverse_covariances_match_sampled_ones() {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+        let a = Isometry3::from_parts(
+            Translation3::new(1.0, 2.0, 0.5),
+            UnitQuaternion::from_euler_angles(0.1, -0.2, 0.7),
+        );
+        let b = Isometry3::from_parts(
+            Translation3::new(6.0, -3.0, 1.2),
+            UnitQuaternion::from_euler_angles(0.0, 0.3, 2.4),
+        );
+        // A joint covariance with strong correlation between the nodes (b = a then a step).
+        let l = nalgebra::SMatrix::<f64, 12, 12>::from_fn(|i, j| {
+            if j > i {
+                0.0
+            } else if i == j {
+                if i % 6 < 3 {
+                    0.02
+                } else {
+                    0.004
+                }
+            } else if i == j + 6 {
+                if i % 6 < 3 {
+                    0.015
+                } else {
+                    0.003
+                }
+            } else {
+                0.0
+            }
+        });
+        let joint = l * l.transpose();
+        let block = |r: usize, c: usize| Matrix6::from_fn(|i, j| joint[(r + i, c + j)]);
+        let (u, cu) = relative((&a, &block(0, 0)), (&b, &block(6, 6)), &block(0, 6));
+        let ci = inverse_covariance(&u, &cu);
+        let n = 20000;
+        let (mut su, mut si) = (Matrix6::zeros(), Matrix6::zeros());
+        for _ in 0..n {
+            let w = nalgebra::SVector::<f64, 12>::from_fn(|_, _| gauss(&mut rng));
+            let d = l * w;
+            let (da, db) = (
+                Vector6::from_column_slice(&d.as_slice()[..6]),
+                Vector6::from_column_slice(&d.as_slice()[6..]),
+            );
+            let v = (a * exp(&da)).inverse() * (b * exp(&db));
+            let e = log(&(u.inverse() * v));
+            su += e * e.transpose() / n as f64;
+            let f = log(&(u * v.inverse()));
+            si += f * f.transpose() / n as f64;
+        }
+        for (sample, c) in [(su, cu), (si, ci)] {
+            let rel = (sample - c).abs().max() / c.abs().max();
+            assert!(
+                rel < 0.05,
+                "sampled vs first order: {rel:.3}\n{sample}\n{c}"
+            );
+        }
     }
 }

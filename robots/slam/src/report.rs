@@ -25,6 +25,23 @@ pub struct SlamEvent {
     pub frame_before: String,
     /// And of `after`: an event that joins this robot to another's component changes it.
     pub frame_after: String,
+    /// The link this robot measured (none for the other side of a partial rendezvous).
+    pub link: Option<EventLink>,
+}
+
+/// A link an event measured.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct EventLink {
+    /// The other robot's frame it reaches (an origin, or the frame of a partial rendezvous).
+    pub other_stamp_ns: u64,
+    /// The measured `this body from the other body` at those frames.
+    pub z: Pose,
+    /// The covariance of its right perturbation `(δt, δθ)` (6 x 6, column-major).
+    pub covariance: Vec<f64>,
+    /// Image matching: the RANSAC inliers.
+    pub inliers: Option<usize>,
+    /// Image matching: the Mahalanobis distance squared to the graph's prediction.
+    pub mahalanobis2: Option<f64>,
 }
 
 /// What a SLAM stack built, for the evaluation: sub-map origins with covariance, the
@@ -48,4 +65,8 @@ pub struct SlamReport {
     pub events: Vec<SlamEvent>,
     /// Counters (observations used and gated, shares sent and received, unresolved links).
     pub counters: std::collections::BTreeMap<String, u64>,
+    /// This robot's key frames (one per origin): stamp and the median depth of their points,
+    /// metres.
+    #[serde(default)]
+    pub keyframes: Vec<(u64, f64)>,
 }

@@ -53,8 +53,7 @@
 use crate::ekf::{LocalMap, Update};
 use crate::global::{relative_info, Anchor, Global, Link, Share};
 use crate::idp::Sensor;
-use crate::lines::LinePrior;
-use crate::report::{SlamEvent, SlamReport, REPORT_ARTIFACT};
+use crate::report::{EventLink, SlamEvent, SlamReport, REPORT_ARTIFACT};
 use hetsim_msgs::{
     Artifact, ArtifactData, Delivered, Image, ImageMatch, Outgoing, Pose, Rendezvous, SensorMsg,
 };
@@ -74,108 +73,20 @@ pub use pipeline::SlamStack;
 
 mod events;
 
+mod params;
+pub use params::SlamParams;
+
+mod places;
+pub use places::PLACE_TOPIC;
+
 /// The radio topic of a robot's part of the graph.
 pub const SHARE_TOPIC: &str = "slam/graph";
-
-/// Tuning of the local level.
-#[derive(Clone, Debug, PartialEq)]
-pub struct SlamParams {
-    /// Initial inverse depth of a new point, m⁻¹ (seed: Dala 0.1, Ressac 0.025).
-    pub rho_init: f64,
-    /// Its standard deviation, m⁻¹ (seed: Dala 0.2, Ressac 0.0125).
-    pub sigma_rho: f64,
-    /// Points per sub-map before a new one starts (seed: 100).
-    pub max_landmarks: usize,
-    /// Points kept in each region of the 3 x 3 partition (seed: 2).
-    pub per_region: usize,
-    /// Pixel noise of an observation, pixels.
-    pub sigma_px: f64,
-    /// A point whose 1σ search ellipse is wider than this is not searched, pixels.
-    pub max_search_px: f64,
-    /// Deletion: searched at least this often and found in fewer than half.
-    pub min_searches: u32,
-    /// The team's reference robot, whose first sub-map is the team's frame (seed Section V:
-    /// Dala's); `None`: this robot's own.
-    pub reference_robot: Option<String>,
-    /// Drift of a sub-map's relative transform as a fraction of its length (1σ per axis).
-    pub edge_drift: f64,
-    /// Events and the radio on (`false`: open loop, the chain of sub-maps only).
-    pub cooperative: bool,
-    /// Least time between two rendezvous events with the same robot, seconds.
-    pub rendezvous_period_s: f64,
-    /// Least time between two image-match events with the same robot, seconds.
-    pub image_match_period_s: f64,
-    /// The robot's part of the graph is sent at least this often, seconds.
-    pub share_period_s: f64,
-    /// Lines on (`false`: points only).
-    pub lines: bool,
-    /// The prior of a new line (seed: the same for both robots).
-    pub line_prior: LinePrior,
-    /// New lines come from segments longer than this in a 1024-pixel-wide image (scaled with
-    /// the width), pixels (seed: 60).
-    pub min_line_px: f64,
-    /// New lines are detected while fewer than this many are tracked.
-    pub max_visible_lines: usize,
-    /// Segments are detected every this many frames.
-    pub line_detect_period: u32,
-    /// The scale segment detection works at (LSD's `scale`, 0.8 in its paper): 0.5 costs a
-    /// third of 0.8's time and still finds the `min_line_px` segments lines are made from;
-    /// the tracker then measures them at full resolution.
-    pub line_detect_scale: f64,
-    /// A line's segment goes to the map output once its distance is known to this
-    /// (relative standard deviation).
-    pub line_output_spread: f64,
-}
-
-impl SlamParams {
-    /// The seed's values for a ground robot (Dala).
-    pub fn ground() -> Self {
-        Self {
-            rho_init: 0.1,
-            sigma_rho: 0.2,
-            ..Self::common()
-        }
-    }
-
-    /// The seed's values for the helicopter (Ressac): points start at 40 m.
-    pub fn aerial() -> Self {
-        Self {
-            rho_init: 0.025,
-            sigma_rho: 0.0125,
-            ..Self::common()
-        }
-    }
-
-    fn common() -> Self {
-        Self {
-            rho_init: 0.1,
-            sigma_rho: 0.2,
-            max_landmarks: 100,
-            per_region: 2,
-            sigma_px: 1.0,
-            max_search_px: 10.0,
-            min_searches: 6,
-            reference_robot: None,
-            edge_drift: 0.03,
-            cooperative: true,
-            rendezvous_period_s: 120.0,
-            image_match_period_s: 30.0,
-            share_period_s: 5.0,
-            lines: true,
-            line_prior: LinePrior::seed(),
-            min_line_px: 60.0,
-            max_visible_lines: 10,
-            line_detect_period: 5,
-            line_detect_scale: 0.5,
-            line_output_spread: 0.2,
-        }
-    }
-}
 
 /// Pilot + stereo VO + local EKF sub-maps + the team's graph.
 pub struct SlamCore {
     robot: String,
     params: SlamParams,
+    bench: Bench,
     vo: StereoVo,
     sensor: Sensor,
     body_from_camera: Pose,
@@ -215,6 +126,16 @@ pub struct SlamCore {
     /// `(stamp, sub-map, pose in the sub-map, its covariance)` of every frame.
     trajectory: Vec<(u64, usize, Pose, Matrix6<f64>)>,
     rng: Lcg,
+    /// Key frames: this robot's (one per origin) and those received.
+    places: Vec<places::Place>,
+    /// How many of this robot's key frames each robot met has been sent.
+    places_sent: BTreeMap<String, usize>,
+    /// When image matching was last tried, nanoseconds.
+    last_match_attempt_ns: Option<u64>,
+    /// The graph's joint covariance and the graph version it is of.
+    covariance: Option<(u64, crate::graph::Covariance)>,
+    /// RANSAC's generator for image matching (VO's stays as it was).
+    match_rng: Lcg,
     /// Observations used, and rejected by the gate.
     pub updates: (u64, u64),
 }
@@ -275,6 +196,7 @@ impl SlamCore {
         Self {
             robot: robot.to_string(),
             params,
+            bench,
             vo: StereoVo::new(bench),
             sensor: Sensor::new(bench.camera, &body_from_camera),
             body_from_camera,
@@ -300,6 +222,11 @@ impl SlamCore {
             vo_trajectory: Vec::new(),
             trajectory: Vec::new(),
             rng: Lcg(seed),
+            places: Vec::new(),
+            places_sent: BTreeMap::new(),
+            last_match_attempt_ns: None,
+            covariance: None,
+            match_rng: Lcg(seed ^ 0x5bd1_e995_9e37_79b9),
             updates: (0, 0),
         }
     }
@@ -392,21 +319,34 @@ impl SlamCore {
             self.observe(&l);
         }
         if let Some(r) = self.pending_rendezvous.take_if(|r| r.stamp_ns <= stamp) {
-            let sigmas = (r.sigma_m, r.sigma_rad);
+            let info = relative_info(r.sigma_m, r.sigma_rad);
             self.link_event(
                 "rendezvous",
                 (&r.other, r.stamp_ns),
                 r.relative,
-                sigmas,
+                info,
                 stamp,
             );
             self.last_link.insert(("rendezvous", r.other), r.stamp_ns);
         }
         if let Some(m) = self.pending_match.take_if(|m| m.stamp_ns <= stamp) {
-            let sigmas = (m.sigma_m, m.sigma_rad);
+            // The emulated matcher of the robot file's `image_match` oracle (ablations only).
+            let info = relative_info(m.sigma_m, m.sigma_rad);
             let link = (m.other.as_str(), m.other_stamp_ns);
-            self.link_event("image_match", link, m.relative, sigmas, stamp);
+            self.link_event("image_match", link, m.relative, info, stamp);
             self.last_link.insert(("image_match", m.other), m.stamp_ns);
+        }
+        if let Some(f) = self.try_match(&l, stamp) {
+            let cov = f.cov;
+            let info = cov.try_inverse().unwrap_or_else(Matrix6::identity);
+            self.link_event("image_match", (&f.robot, f.stamp_ns), f.z, info, stamp);
+            if let Some(e) = self.events.last_mut() {
+                if let Some(link) = e.link.as_mut() {
+                    link.inliers = Some(f.inliers);
+                    link.mahalanobis2 = Some(f.mahalanobis2);
+                }
+            }
+            self.last_link.insert(("image_match", f.robot), stamp);
         }
         self.add_points(&l);
         if self.params.lines {
@@ -415,6 +355,7 @@ impl SlamCore {
         if self.map.landmarks() >= self.params.max_landmarks {
             self.new_submap(stamp);
         }
+        self.keep_place(&l, stamp);
         self.trajectory.push((
             stamp,
             self.submaps() - 1,
@@ -493,6 +434,7 @@ impl SlamCore {
                 }
             }
             SensorMsg::Comms(d) if d.topic == SHARE_TOPIC => self.receive(d),
+            SensorMsg::Comms(d) if d.topic == PLACE_TOPIC => self.receive_place(d),
             _ => {}
         }
     }
@@ -564,6 +506,12 @@ impl SlamCore {
             covariances,
             events: self.events.clone(),
             counters,
+            keyframes: self
+                .places
+                .iter()
+                .filter(|p| p.robot == self.robot)
+                .map(|p| (p.stamp_ns, p.frame.median_depth()))
+                .collect(),
         })
     }
 

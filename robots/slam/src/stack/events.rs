@@ -71,6 +71,7 @@ impl SlamCore {
         other: &str,
         stamp: u64,
         (before, frame_before): (Pose, String),
+        link: Option<EventLink>,
     ) {
         let g = self
             .global
@@ -87,6 +88,7 @@ impl SlamCore {
             after,
             frame_before,
             frame_after,
+            link,
         });
         self.last_event_ns = stamp;
         self.share(stamp);
@@ -94,7 +96,7 @@ impl SlamCore {
 
     /// A link event (seed Sections III and V): the origin made now is linked to the other
     /// robot's origin of stamp `link.1` by the measured `self_from_other` `z`, whose position
-    /// and rotation deviations are `sigmas`. For a rendezvous that is the origin the other
+    /// information is `info`. For a rendezvous that is the origin the other
     /// robot made at the same frame (it saw this robot too); for an image match, the past
     /// origin whose frame matched.
     pub(super) fn link_event(
@@ -102,7 +104,7 @@ impl SlamCore {
         kind: &str,
         link: (&str, u64),
         z: Pose,
-        sigmas: (f64, f64),
+        info: Matrix6<f64>,
         stamp: u64,
     ) {
         let (other, other_stamp_ns) = link;
@@ -117,10 +119,18 @@ impl SlamCore {
                 other: other.to_string(),
                 other_stamp_ns,
                 z,
-                info: relative_info(sigmas.0, sigmas.1),
+                info,
             });
         self.peers.insert(other.to_string());
-        self.after_event(kind, other, stamp, before);
+        let cov = info.try_inverse().unwrap_or_else(Matrix6::zeros);
+        let link = EventLink {
+            other_stamp_ns,
+            z,
+            covariance: cov.as_slice().to_vec(),
+            inliers: None,
+            mahalanobis2: None,
+        };
+        self.after_event(kind, other, stamp, before, Some(link));
     }
 
     /// Whether a link event of `kind` with `other` at `stamp_ns` is due: none with that
@@ -175,6 +185,7 @@ impl SlamCore {
         }
         self.count("shares_sent", self.peers.len() as u64);
         self.last_share_ns = Some(now_ns);
+        self.send_places();
     }
 
     /// Another robot's part arrived. If its links name frames of this robot that are not
@@ -223,7 +234,7 @@ impl SlamCore {
                     .unwrap_or_else(|| "rendezvous".into());
                 let at = self.trajectory.last().map_or(stamp, |f| f.0);
                 self.count("anchors", 1);
-                self.after_event(&kind, &sender, at, before);
+                self.after_event(&kind, &sender, at, before, None);
             }
             None if changed => {
                 g.optimize();
