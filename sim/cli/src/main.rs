@@ -134,12 +134,15 @@ enum Cmd {
     },
     /// Write results/coverage-tables.md and its figures (`hetsim report coverage`: runs or
     /// resumes the table1 and table2 sweeps first), or a village run's results page
-    /// (`hetsim report village RUN_DIR`: results/village/ from the run's folder).
+    /// (`hetsim report village RUN_DIR [RUN_DIR ...]`: results/village/ from the run's folder,
+    /// with the mean and spread over seeds when given the runs of several).
     Report {
         /// What to report: `coverage` or `village`.
         what: String,
-        /// `village`: the results folder of the run to report.
-        run: Option<PathBuf>,
+        /// `village`: the results folder of the run to report; more folders (runs of the same
+        /// scenario with other seeds) add the mean and spread over the seeds and the Monte
+        /// Carlo consistency test.
+        run: Vec<PathBuf>,
         /// `village`: where to write the page (default: results/village).
         #[arg(long)]
         out: Option<PathBuf>,

@@ -15,17 +15,19 @@ fn default_jobs(jobs: Option<usize>) -> usize {
 /// `hetsim report coverage`.
 pub fn report(
     what: &str,
-    run: Option<PathBuf>,
+    runs: Vec<PathBuf>,
     out: Option<PathBuf>,
     jobs: Option<usize>,
 ) -> Result<()> {
     if what == "village" {
-        let run = run.context(
-            "hetsim report village RUN_DIR: name the results folder of a village run \
-             (`hetsim run scenarios/village.toml` prints it as `results: <dir>`)",
-        )?;
+        anyhow::ensure!(
+            !runs.is_empty(),
+            "hetsim report village RUN_DIR [RUN_DIR ...]: name the results folder of a village \
+             run (`hetsim run scenarios/village.toml` prints it as `results: <dir>`), or of \
+             several runs with other seeds for the mean and spread over seeds"
+        );
         let out = out.unwrap_or_else(|| PathBuf::from("results/village"));
-        let path = hetsim_eval::village::village_report(&run, &out)?;
+        let path = hetsim_eval::village::village_report(&runs, &out)?;
         println!("results: {}", path.display());
         return Ok(());
     }
@@ -34,7 +36,7 @@ pub fn report(
         "unknown report {what:?}: the reports are `coverage` and `village RUN_DIR`"
     );
     anyhow::ensure!(
-        run.is_none() && out.is_none(),
+        runs.is_empty() && out.is_none(),
         "hetsim report coverage takes no run folder and no --out: it writes results/coverage-tables.md"
     );
     let bar = progress_bar("report");

@@ -212,6 +212,77 @@ fn draw(
     Ok(())
 }
 
+/// The robot pose's NEES averaged over `runs` Monte Carlo runs against time (log scale),
+/// with the two-sided 95 % interval `(lo, hi)` of a consistent estimate shaded, as PNG bytes.
+pub fn nees_png(robot: &str, avg: &[(f64, f64)], (lo, hi): (f64, f64), runs: usize) -> Vec<u8> {
+    register_font();
+    let (w, h) = (1000u32, 480u32);
+    let mut buf = vec![255u8; (w * h * 3) as usize];
+    {
+        let root = BitMapBackend::with_buffer(&mut buf, (w, h)).into_drawing_area();
+        draw_nees(&root, robot, avg, (lo, hi), runs)
+            .unwrap_or_else(|e| panic!("drawing into a memory buffer: {e}"));
+        root.present()
+            .unwrap_or_else(|e| panic!("drawing into a memory buffer: {e}"));
+    }
+    let img = RgbImage::from_raw(w, h, buf).expect("the buffer is w x h x 3");
+    crate::plot::png(&img)
+}
+
+fn draw_nees(
+    root: &DrawingArea<BitMapBackend<'_>, Shift>,
+    robot: &str,
+    avg: &[(f64, f64)],
+    (lo, hi): (f64, f64),
+    runs: usize,
+) -> Result<()> {
+    root.fill(&WHITE)?;
+    let pts: Vec<(f64, f64)> = avg
+        .iter()
+        .copied()
+        .filter(|p| p.0.is_finite() && p.1.is_finite() && p.1 > 0.0)
+        .collect();
+    let (t0, t1) = range(pts.iter().map(|p| p.0), 1.0);
+    let y0 = pts.iter().map(|p| p.1).fold(lo, f64::min) * 0.8;
+    let y1 = pts.iter().map(|p| p.1).fold(hi, f64::max) * 1.25;
+    let title = format!("{robot}: robot pose NEES averaged over {runs} runs");
+    let mut chart = ChartBuilder::on(root)
+        .caption(title, (FONT, 22))
+        .margin(15)
+        .x_label_area_size(50)
+        .y_label_area_size(70)
+        .build_cartesian_2d(t0.min(0.0)..t1, (y0..y1).log_scale())?;
+    chart
+        .configure_mesh()
+        .x_desc("time [s]")
+        .y_desc("NEES (6 expected), log scale")
+        .label_style((FONT, 14))
+        .axis_desc_style((FONT, 16))
+        .draw()?;
+    let band = RGBColor(200, 230, 200);
+    chart
+        .draw_series(std::iter::once(Rectangle::new(
+            [(t0.min(0.0), lo), (t1, hi)],
+            band.filled(),
+        )))?
+        .label(format!(
+            "95 % interval of a consistent estimate [{lo:.2}, {hi:.2}]"
+        ))
+        .legend(move |(x, y)| Rectangle::new([(x, y - 6), (x + 24, y + 6)], band.filled()));
+    chart
+        .draw_series(LineSeries::new(pts, COLOURS[0].stroke_width(2)))?
+        .label("NEES averaged over the runs")
+        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 24, y)], COLOURS[0].stroke_width(3)));
+    chart
+        .configure_series_labels()
+        .background_style(WHITE.mix(0.9))
+        .border_style(BLACK)
+        .label_font((FONT, 14))
+        .position(SeriesLabelPosition::UpperLeft)
+        .draw()?;
+    Ok(())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -10,6 +10,7 @@ pub mod charts;
 pub mod coverage;
 pub mod frames;
 pub mod localize;
+pub mod matching;
 pub mod metrics;
 pub mod plot;
 pub mod regress;

@@ -128,8 +128,16 @@ impl Metrics {
             );
         }
         let reports = crate::slam::reports(output);
-        let slam = (!reports.is_empty())
-            .then(|| crate::slam::evaluate(&reports, &estimates, &output.truth));
+        let slam = (!reports.is_empty()).then(|| {
+            let mut slam = crate::slam::evaluate(&reports, &estimates, &output.truth);
+            let raw = crate::frames::raw_reports(output);
+            for (robot, m) in crate::matching::judge(scenario, &raw, &output.truth) {
+                if let Some(r) = slam.robots.get_mut(&robot) {
+                    r.matching = Some(m);
+                }
+            }
+            slam
+        });
         Ok(Self {
             ticks: output.ticks,
             sim_secs: output.sim_secs,

@@ -38,12 +38,22 @@ pub struct RobotSlam {
     pub nees_mean: f64,
     /// Poses with truth and covariance.
     pub nees_poses: usize,
+    /// `(time s, NEES)` at every whole second: runs of other seeds are averaged at the same
+    /// times for the consistency test (`hetsim report village RUN...`).
+    pub nees_series: Vec<(f64, f64)>,
+    /// Each axis's squared error over its own variance, averaged over the poses (x, y, z in
+    /// the body frame, then the rotation vector's three): 1 for a consistent estimate; which
+    /// axis is overconfident, and by how much.
+    pub nees_axes: [f64; 6],
     /// Sub-maps built.
     pub submaps: usize,
     /// The events, in order.
     pub events: Vec<EventMetrics>,
     /// The stack's counters.
     pub counters: BTreeMap<String, u64>,
+    /// Its image matching against the truth ([`crate::matching`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub matching: Option<crate::matching::MatchingMetrics>,
 }
 
 /// The SLAM section of `metrics.json`.
@@ -110,6 +120,8 @@ pub fn evaluate(
             .iter()
             .find(|e| e.kind == "slam" && e.robot == *robot);
         let mut nees = Vec::new();
+        let mut series = Vec::new();
+        let mut axes = [0.0; 6];
         if let Some(slam) = slam {
             for ((stamp, pose), cov) in slam.poses.iter().zip(&report.covariances) {
                 let (Some(t), Some(inv)) = (
@@ -119,7 +131,16 @@ pub fn evaluate(
                     continue;
                 };
                 let e = error(pose, t);
-                nees.push((e.transpose() * inv * e)[0]);
+                let c = Matrix6::from_column_slice(cov);
+                for (k, a) in axes.iter_mut().enumerate() {
+                    *a += e[k] * e[k] / c[(k, k)].max(1e-300);
+                }
+                let n = (e.transpose() * inv * e)[0];
+                nees.push(n);
+                // Whole seconds (one pose a second) for the Monte Carlo test across runs.
+                if stamp % 1_000_000_000 == 0 {
+                    series.push((*stamp as f64 * 1e-9, n));
+                }
             }
         }
         let events = report
@@ -144,9 +165,12 @@ pub fn evaluate(
             RobotSlam {
                 nees_mean: nees.iter().sum::<f64>() / nees.len().max(1) as f64,
                 nees_poses: nees.len(),
+                nees_series: series,
+                nees_axes: axes.map(|a| a / nees.len().max(1) as f64),
                 submaps: report.origins.len(),
                 events,
                 counters: report.counters.clone(),
+                matching: None,
             },
         );
     }
@@ -204,6 +228,7 @@ mod tests {
                 after: truth[5].1 * pose_from_xyz_rpy([0.0, 0.0, 0.5], [0.0; 3]),
                 frame_before: "a".into(),
                 frame_after: "a".into(),
+                link: None,
             }],
             ..SlamReport::default()
         };

@@ -21,6 +21,10 @@ pub struct Accuracy {
     pub length_m: f64,
     /// Absolute trajectory error after SE(3) alignment, RMSE, metres.
     pub ate_m: f64,
+    /// The same without alignment, RMSE, metres: the estimate where its frame lies in the
+    /// world ([`crate::frames::world_frames`]: the team's frame, Dala's first origin, placed
+    /// by the truth; a robot still in its own frame, by its own first true pose).
+    pub ate_unaligned_m: f64,
     /// Relative pose error of translation over 1 s, RMSE, metres.
     pub rpe_1s_m: f64,
     /// Position error of the last pose without alignment, metres.
@@ -76,6 +80,16 @@ pub fn evaluate_joint(parts: &[Paired<'_>]) -> Accuracy {
             .sqrt(),
         None => f64::NAN,
     };
+    let ate_unaligned_m = if est.is_empty() {
+        f64::NAN
+    } else {
+        (est.iter()
+            .zip(&gt)
+            .map(|(e, g)| (e - g).norm_squared())
+            .sum::<f64>()
+            / est.len() as f64)
+            .sqrt()
+    };
     let rpe_1s_m = if sq.is_empty() {
         f64::NAN
     } else {
@@ -85,6 +99,7 @@ pub fn evaluate_joint(parts: &[Paired<'_>]) -> Accuracy {
         poses: est.len(),
         length_m,
         ate_m,
+        ate_unaligned_m,
         rpe_1s_m,
         final_error_m,
     }

@@ -1,0 +1,398 @@
+//! The village over several seeds (Fig. 7 of seed 000 as mean ± sample standard deviation, the
+//! image matches judged, and the Monte Carlo consistency test of the robot pose's NEES).
+//!
+//! Consistency as Bar-Shalom tests it for `N` independent runs: at each time, the NEES
+//! averaged over the runs, times `N`, is chi-square with `6N` degrees of freedom for a
+//! consistent 6-degree-of-freedom estimate; the fraction of times inside its two-sided 95 %
+//! interval should be at least 95 %.
+
+use super::{field, num, read_json};
+use crate::EvalError;
+use serde_json::Value;
+use std::collections::BTreeMap;
+use std::fmt::Write;
+use std::path::{Path, PathBuf};
+
+/// The standard normal quantile (Acklam's rational approximation, relative error < 1.2e-9).
+fn normal_quantile(p: f64) -> f64 {
+    let a = [
+        -3.969683028665376e+01,
+        2.209460984245205e+02,
+        -2.759285104469687e+02,
+        1.383_577_518_672_69e2,
+        -3.066479806614716e+01,
+        2.506628277459239e+00,
+    ];
+    let b = [
+        -5.447609879822406e+01,
+        1.615858368580409e+02,
+        -1.556989798598866e+02,
+        6.680131188771972e+01,
+        -1.328068155288572e+01,
+    ];
+    let c = [
+        -7.784894002430293e-03,
+        -3.223964580411365e-01,
+        -2.400758277161838e+00,
+        -2.549732539343734e+00,
+        4.374664141464968e+00,
+        2.938163982698783e+00,
+    ];
+    let d = [
+        7.784695709041462e-03,
+        3.224671290700398e-01,
+        2.445134137142996e+00,
+        3.754408661907416e+00,
+    ];
+    let tail = |q: f64| {
+        (((((c[0] * q + c[1]) * q + c[2]) * q + c[3]) * q + c[4]) * q + c[5])
+            / ((((d[0] * q + d[1]) * q + d[2]) * q + d[3]) * q + 1.0)
+    };
+    if p < 0.02425 {
+        tail((-2.0 * p.ln()).sqrt())
+    } else if p > 1.0 - 0.02425 {
+        -tail((-2.0 * (1.0 - p).ln()).sqrt())
+    } else {
+        let q = p - 0.5;
+        let r = q * q;
+        (((((a[0] * r + a[1]) * r + a[2]) * r + a[3]) * r + a[4]) * r + a[5]) * q
+            / (((((b[0] * r + b[1]) * r + b[2]) * r + b[3]) * r + b[4]) * r + 1.0)
+    }
+}
+
+/// The chi-square quantile with `k` degrees of freedom (Wilson-Hilferty; within 1 % of the tables
+/// from 12 degrees of freedom up, as Monte Carlo tests over two runs or more use it).
+pub fn chi2_quantile(p: f64, k: f64) -> f64 {
+    let h = 2.0 / (9.0 * k);
+    k * (1.0 - h + normal_quantile(p) * h.sqrt()).powi(3)
+}
+
+/// Mean and sample standard deviation.
+fn mean_std(v: &[f64]) -> (f64, f64) {
+    let n = v.len() as f64;
+    let m = v.iter().sum::<f64>() / n;
+    let s = if v.len() > 1 {
+        (v.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (n - 1.0)).sqrt()
+    } else {
+        f64::NAN
+    };
+    (m, s)
+}
+
+/// One run's figures that the seeds section reads.
+struct Run {
+    seed: String,
+    metrics: Value,
+    path: PathBuf,
+}
+
+impl Run {
+    fn read(dir: &Path) -> Result<Self, EvalError> {
+        let metrics = read_json(dir, "metrics.json")?;
+        let manifest = read_json(dir, "manifest.json")?;
+        let seed = field(&manifest, &dir.join("manifest.json"), "seed")?.to_string();
+        Ok(Self {
+            seed,
+            metrics,
+            path: dir.join("metrics.json"),
+        })
+    }
+
+    fn num(&self, dotted: &str) -> Result<f64, EvalError> {
+        num(&self.metrics, &self.path, dotted)
+    }
+}
+
+/// Files to write: `(name, bytes)`.
+type Files = Vec<(String, Vec<u8>)>;
+
+/// The seeds section of the page and its figures, from the runs' folders (the same scenario
+/// with different seeds).
+pub fn section(dirs: &[PathBuf]) -> Result<(String, Files), EvalError> {
+    let runs = dirs
+        .iter()
+        .map(|d| Run::read(d))
+        .collect::<Result<Vec<_>, _>>()?;
+    let robots: Vec<String> = field(&runs[0].metrics, &runs[0].path, "slam.robots")?
+        .as_object()
+        .map(|o| o.keys().cloned().collect())
+        .unwrap_or_default();
+    let n = runs.len();
+    let mut md = String::new();
+    let seeds: Vec<&str> = runs.iter().map(|r| r.seed.as_str()).collect();
+    let _ = writeln!(
+        md,
+        "\n## Over {n} seeds\n\nSeeds {} of the same scenario, each run whole. Mean ± sample \
+         standard deviation over the seeds; every value per seed in the last columns. ATE \
+         aligned: after SE(3) alignment of the whole trajectory; unaligned: in Dala's frame, \
+         which the evaluation places in the world by Dala's true first pose (a robot not yet \
+         linked to Dala is placed by its own).\n",
+        seeds.join(", ")
+    );
+    let _ = writeln!(
+        md,
+        "| robot | estimate | ATE aligned m | ATE unaligned m | per seed, aligned / unaligned |\n|---|---|---|---|---|"
+    );
+    let mut ordered = BTreeMap::new();
+    for robot in &robots {
+        let mut means = Vec::new();
+        for kind in ["slam", "slam-open", "vo"] {
+            let mut a = Vec::new();
+            let mut u = Vec::new();
+            for r in &runs {
+                a.push(r.num(&format!("estimates.{kind}/{robot}.ate_m"))?);
+                u.push(r.num(&format!("estimates.{kind}/{robot}.ate_unaligned_m"))?);
+            }
+            let ((am, asd), (um, usd)) = (mean_std(&a), mean_std(&u));
+            means.push((am, um));
+            let per: Vec<String> = a
+                .iter()
+                .zip(&u)
+                .map(|(x, y)| format!("{x:.2} / {y:.2}"))
+                .collect();
+            let _ = writeln!(
+                md,
+                "| {robot} | {kind} | {am:.2} ± {asd:.2} | {um:.2} ± {usd:.2} | {} |",
+                per.join(", ")
+            );
+        }
+        ordered.insert(robot.clone(), means);
+    }
+    let _ = writeln!(
+        md,
+        "\nThe seed's Fig. 7 result, cooperative below open loop below VO, on the means:\n"
+    );
+    for (robot, m) in &ordered {
+        let holds = |f: fn(&(f64, f64)) -> f64| f(&m[0]) < f(&m[1]) && f(&m[1]) < f(&m[2]);
+        let _ = writeln!(
+            md,
+            "- {robot}: aligned {}, unaligned {}",
+            if holds(|x| x.0) {
+                "holds"
+            } else {
+                "**does not hold**"
+            },
+            if holds(|x| x.1) {
+                "holds"
+            } else {
+                "**does not hold**"
+            },
+        );
+    }
+
+    // Image matching, judged against the truth.
+    let _ = writeln!(
+        md,
+        "\n## Image matching over the seeds\n\nAccepted matches, how many were false (more \
+         than 2 m or 5 degrees from the true relative pose), the passes over a key frame the \
+         truth says could match and how many of them got a match, were missed, or came \
+         within 30 s of the robot's last match (it waits by design); and the first match's \
+         altitude correction.\n"
+    );
+    let _ = writeln!(
+        md,
+        "| robot | seed | attempts | accepted | false | gated | passes found / missed / waiting | first match: time s, error before -> after m, altitude m |\n|---|---|---|---|---|---|---|---|"
+    );
+    for robot in &robots {
+        for r in &runs {
+            let s = &r.metrics["slam"]["robots"][robot];
+            let c = |k: &str| s["counters"].get(k).and_then(Value::as_u64).unwrap_or(0);
+            let m = &s["matching"];
+            let u = |k: &str| m.get(k).and_then(Value::as_u64).unwrap_or(0);
+            let first = s["events"]
+                .as_array()
+                .and_then(|e| e.iter().find(|e| e["kind"] == "image_match"))
+                .map_or("-".to_string(), |e| {
+                    let f = |k: &str| e[k].as_f64().unwrap_or(f64::NAN);
+                    format!(
+                        "{:.1}, {:.2} -> {:.2}, {:.2} -> {:.2}",
+                        f("time_s"),
+                        f("error_before_m"),
+                        f("error_after_m"),
+                        f("altitude_error_before_m"),
+                        f("altitude_error_after_m")
+                    )
+                });
+            let _ = writeln!(
+                md,
+                "| {robot} | {} | {} | {} | {} | {} | {} / {} / {} | {first} |",
+                r.seed,
+                c("match_attempts"),
+                c("matches_accepted"),
+                u("false_matches"),
+                c("matches_gated"),
+                u("found"),
+                u("missed"),
+                u("waiting"),
+            );
+        }
+    }
+
+    // Monte Carlo consistency.
+    let (lo, hi) = (
+        chi2_quantile(0.025, 6.0 * n as f64) / n as f64,
+        chi2_quantile(0.975, 6.0 * n as f64) / n as f64,
+    );
+    let _ = writeln!(
+        md,
+        "\n## Consistency over the seeds\n\nThe robot pose's NEES at every whole second, \
+         averaged over the {n} runs: consistent where it lies within [{lo:.2}, {hi:.2}] \
+         (chi-square with {} degrees of freedom over {n}, two-sided 95 %) at 95 % of the \
+         times or more.\n",
+        6 * n
+    );
+    let _ = writeln!(
+        md,
+        "| robot | times | inside | below | above | mean of the averaged NEES | median |\n|---|---|---|---|---|---|---|"
+    );
+    let mut files = Vec::new();
+    let mut axis_rows = Vec::new();
+    for robot in &robots {
+        let mut by_time: BTreeMap<i64, Vec<f64>> = BTreeMap::new();
+        for r in &runs {
+            let series = r.metrics["slam"]["robots"][robot]["nees_series"]
+                .as_array()
+                .ok_or_else(|| EvalError::Content {
+                    path: r.path.clone(),
+                    message: format!("field `slam.robots.{robot}.nees_series` is missing"),
+                })?;
+            for p in series {
+                if let (Some(t), Some(v)) = (p[0].as_f64(), p[1].as_f64()) {
+                    by_time.entry(t.round() as i64).or_default().push(v);
+                }
+            }
+        }
+        let avg: Vec<(f64, f64)> = by_time
+            .iter()
+            .filter(|(_, v)| v.len() == n)
+            .map(|(t, v)| (*t as f64, v.iter().sum::<f64>() / n as f64))
+            .collect();
+        let inside = avg.iter().filter(|(_, v)| *v >= lo && *v <= hi).count();
+        let below = avg.iter().filter(|(_, v)| *v < lo).count();
+        let mut sorted: Vec<f64> = avg.iter().map(|p| p.1).collect();
+        sorted.sort_by(f64::total_cmp);
+        let median = sorted.get(sorted.len() / 2).copied().unwrap_or(f64::NAN);
+        let mean = sorted.iter().sum::<f64>() / sorted.len().max(1) as f64;
+        let pct = |k: usize| 100.0 * k as f64 / avg.len().max(1) as f64;
+        let _ = writeln!(
+            md,
+            "| {robot} | {} | {:.1} % | {:.1} % | {:.1} % | {mean:.2} | {median:.2} |",
+            avg.len(),
+            pct(inside),
+            pct(below),
+            pct(avg.len() - inside - below)
+        );
+        let mut axes = [0.0; 6];
+        for r in &runs {
+            for (k, a) in axes.iter_mut().enumerate() {
+                *a += r.metrics["slam"]["robots"][robot]["nees_axes"][k]
+                    .as_f64()
+                    .unwrap_or(f64::NAN)
+                    / n as f64;
+            }
+        }
+        axis_rows.push(format!(
+            "| {robot} | {} |",
+            axes.map(|a| format!("{a:.2}")).join(" | ")
+        ));
+        let name = format!("nees-{robot}.png");
+        files.push((name, crate::charts::nees_png(robot, &avg, (lo, hi), n)));
+    }
+    let _ = writeln!(
+        md,
+        "\nWhich term is overconfident: each axis's squared error over its own variance \
+         (1 expected), averaged over the poses and the seeds; position in the body frame \
+         (x forward, y left, z up), then rotation.\n\n| robot | x | y | z | roll | pitch | yaw |\n|---|---|---|---|---|---|---|\n{}",
+        axis_rows.join("\n")
+    );
+    for robot in &robots {
+        let _ = writeln!(md, "\n![NEES over time, {robot}](nees-{robot}.png)");
+    }
+    Ok((md, files))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Against the chi-square tables (Abramowitz and Stegun, Table 26.8).
+    #[test]
+    fn chi_square_quantiles_match_the_tables() {
+        for (p, k, table) in [
+            (0.025, 30.0, 16.791),
+            (0.975, 30.0, 46.979),
+            (0.025, 12.0, 4.4038),
+            (0.975, 12.0, 23.337),
+        ] {
+            let q = chi2_quantile(p, k);
+            assert!(
+                (q / table - 1.0).abs() < 0.01,
+                "chi2({p}, {k}) = {q}, table {table}"
+            );
+        }
+    }
+
+    fn run(dir: &Path, seed: u64, ate: [f64; 2], nees: &[f64]) {
+        std::fs::create_dir_all(dir.join("plots")).unwrap();
+        let est = |a: f64| serde_json::json!({"length_m": 100.0, "ate_m": a, "ate_unaligned_m": 2.0 * a, "rpe_1s_m": 0.01, "final_error_m": a});
+        let series: Vec<(f64, f64)> = nees
+            .iter()
+            .enumerate()
+            .map(|(k, v)| (k as f64, *v))
+            .collect();
+        let metrics = serde_json::json!({
+            "sim_secs": 10.0,
+            "estimates": {"slam/dala": est(ate[0]), "slam-open/dala": est(ate[1]), "vo/dala": est(ate[1] + 1.0)},
+            "slam": {"robots": {"dala": {
+                "nees_mean": 6.0, "nees_poses": 100, "submaps": 3, "nees_series": series,
+                "events": [], "counters": {"match_attempts": 4, "matches_accepted": 1},
+                "matching": {"links": [], "false_matches": 0, "passes": 2, "found": 1, "missed": 1, "waiting": 0}}}}
+        });
+        std::fs::write(dir.join("metrics.json"), metrics.to_string()).unwrap();
+        let manifest = serde_json::json!({"scenario": {"name": "village"}, "seed": seed, "digest": "ab", "oracles": []});
+        std::fs::write(dir.join("manifest.json"), manifest.to_string()).unwrap();
+        std::fs::write(dir.join("plots/fig7-dala.png"), b"png").unwrap();
+    }
+
+    /// Two seeds: the means and sample deviations, the order of Fig. 7, and the Monte Carlo
+    /// test against chi-square(12)/2's 95 % interval [2.20, 11.67] (tables).
+    #[test]
+    fn the_seeds_section_gives_spreads_and_the_consistency_test() {
+        let tmp = tempfile::tempdir().unwrap();
+        let (a, b) = (tmp.path().join("a"), tmp.path().join("b"));
+        // Ten whole seconds; the averages: eight at 6, one at 20 (above), one at 1 (below).
+        let mut na = vec![6.0; 10];
+        let mut nb = vec![6.0; 10];
+        (na[3], nb[3]) = (30.0, 10.0);
+        (na[7], nb[7]) = (1.0, 1.0);
+        run(&a, 1, [1.0, 3.0], &na);
+        run(&b, 2, [3.0, 5.0], &nb);
+        let out = tmp.path().join("page");
+        super::super::village_report(&[a, b], &out).unwrap();
+        let md = std::fs::read_to_string(out.join("README.md")).unwrap();
+        // ATE 1 and 3: mean 2, sample deviation sqrt(2) = 1.41; unaligned twice that.
+        assert!(
+            md.contains("| dala | slam | 2.00 ± 1.41 | 4.00 ± 2.83 | 1.00 / 2.00, 3.00 / 6.00 |"),
+            "{md}"
+        );
+        assert!(
+            md.contains("- dala: aligned holds, unaligned holds"),
+            "{md}"
+        );
+        // The tables' 4.404 / 2 and 23.337 / 2; Wilson-Hilferty within 1 %.
+        assert!(
+            md.contains("within [2.20, 11.67]") || md.contains("within [2.19, 11.67]"),
+            "{md}"
+        );
+        assert!(
+            md.contains("| dala | 10 | 80.0 % | 10.0 % | 10.0 % |"),
+            "{md}"
+        );
+        assert!(
+            md.contains("| dala | 2 | 4 | 1 | 0 | 0 | 1 / 1 / 0 |"),
+            "{md}"
+        );
+        let png = std::fs::read(out.join("nees-dala.png")).unwrap();
+        assert!(image::load_from_memory(&png).is_ok());
+    }
+}
