@@ -210,7 +210,9 @@ impl KeyFrame {
         out
     }
 
-    /// Reads [`KeyFrame::to_bytes`]'s layout; `None` if the bytes do not hold exactly one.
+    /// Reads [`KeyFrame::to_bytes`]'s layout; `None` if the bytes do not hold exactly one, or
+    /// hold numbers that are not finite, a camera or baseline that is not positive, or a point
+    /// that is not in front of the camera.
     pub fn from_bytes(b: &[u8]) -> Option<Self> {
         let f64_at = |i: usize| Some(f64::from_le_bytes(b.get(i..i + 8)?.try_into().ok()?));
         let f32_at = |i: usize| Some(f32::from_le_bytes(b.get(i..i + 4)?.try_into().ok()?));
@@ -253,7 +255,13 @@ impl KeyFrame {
             && points
                 .iter()
                 .all(|p| p.pixel.iter().chain(&p.point).all(|v| v.is_finite()));
-        finite.then_some(Self {
+        // A real camera and baseline, points in front of it: anything else would make the
+        // matcher's geometry meaningless (an infinite footprint, a link that is not a number).
+        let real = camera.alpha_u > 0.0
+            && camera.alpha_v > 0.0
+            && baseline_m > 0.0
+            && points.iter().all(|p| p.point[2] > 0.0);
+        (finite && real).then_some(Self {
             camera,
             baseline_m,
             points,

@@ -320,7 +320,8 @@ impl SlamCore {
             let d2 = (sz + inverse_covariance(&q, &sq))
                 .try_inverse()
                 .map_or(f64::INFINITY, |s| (nu.transpose() * s * nu)[0]);
-            if d2 > self.params.match_gate_chi2 {
+            // Written so that a distance that is not a number is refused too.
+            if !(d2 <= self.params.match_gate_chi2) {
                 self.count("matches_gated", 1);
                 continue;
             }
@@ -377,5 +378,43 @@ mod tests {
         let w = 2 + 6 + 8 + 6 * 8;
         bad[w..w + 8].copy_from_slice(&3.0f64.to_le_bytes());
         assert_eq!(Place::from_bytes(&bad), None);
+    }
+
+    /// The link's covariance against sampling: `T` perturbed on the left by draws of its
+    /// covariance, the residual `Log(ẑ⁻¹ B Exp(ξ) T Bk⁻¹)` sampled (20000 draws: 5 % is
+    /// several times the sampling error of about 1 % per entry).
+    #[test]
+    fn the_link_covariance_matches_sampled_links() {
+        use rand::{RngExt, SeedableRng};
+        let b = hetsim_msgs::pose_from_xyz_rpy([0.6, 0.45, -0.5], [0.0, 1.5708, 0.0]);
+        let bk = hetsim_msgs::pose_from_xyz_rpy([0.35, 0.17, 1.4], [0.0, 0.14, 0.0]);
+        let t = hetsim_msgs::pose_from_xyz_rpy([3.0, -1.0, 2.0], [0.2, -0.1, 2.9]);
+        let l = nalgebra::Matrix6::from_fn(|i, j| match (i, j) {
+            _ if i == j && i < 3 => 0.05,
+            _ if i == j => 0.004,
+            (4, 0) => 0.02,
+            (5, 1) => -0.01,
+            _ => 0.0,
+        });
+        let cov = l * l.transpose();
+        let predicted = link_covariance(&b, &t, &bk, &cov);
+        let z = b * t * bk.inverse();
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
+        let mut gauss = || -> f64 {
+            let (u, v): (f64, f64) = (rng.random_range(1e-12..1.0), rng.random_range(0.0..1.0));
+            (-2.0 * u.ln()).sqrt() * (std::f64::consts::TAU * v).cos()
+        };
+        let n = 20000;
+        let mut sampled = nalgebra::Matrix6::zeros();
+        for _ in 0..n {
+            let xi = l * nalgebra::Vector6::from_fn(|_, _| gauss());
+            let e = log(&(z.inverse() * b * crate::graph::exp(&xi) * t * bk.inverse()));
+            sampled += e * e.transpose() / n as f64;
+        }
+        let rel = (sampled - predicted).abs().max() / predicted.abs().max();
+        assert!(
+            rel < 0.05,
+            "sampled vs first order: {rel:.3}\n{sampled}\n{predicted}"
+        );
     }
 }

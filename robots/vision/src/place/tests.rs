@@ -116,6 +116,15 @@ fn key_frames_cross_the_radio_bit_for_bit_and_truncation_is_refused() {
     let mut nan = bytes.clone();
     nan[44 + 8..44 + 12].copy_from_slice(&f32::NAN.to_le_bytes());
     assert_eq!(KeyFrame::from_bytes(&nan), None);
+    // A camera of zero focal length, a zero baseline, a point behind the camera.
+    for (at, value) in [(0usize, 0.0f64), (32, 0.0)] {
+        let mut bad = bytes.clone();
+        bad[at..at + 8].copy_from_slice(&value.to_le_bytes());
+        assert_eq!(KeyFrame::from_bytes(&bad), None, "byte {at}");
+    }
+    let mut behind = bytes.clone();
+    behind[44 + 16..44 + 20].copy_from_slice(&(-8.0f32).to_le_bytes());
+    assert_eq!(KeyFrame::from_bytes(&behind), None);
     // Points whose patch leaves the image have no descriptor and are left out.
     let edge = [StereoPoint {
         left: [3.0, 3.0],
