@@ -320,8 +320,8 @@ impl SlamCore {
             let d2 = (sz + inverse_covariance(&q, &sq))
                 .try_inverse()
                 .map_or(f64::INFINITY, |s| (nu.transpose() * s * nu)[0]);
-            // Written so that a distance that is not a number is refused too.
-            if !(d2 <= self.params.match_gate_chi2) {
+            // A distance that is not a number is refused too.
+            if d2.is_nan() || d2 > self.params.match_gate_chi2 {
                 self.count("matches_gated", 1);
                 continue;
             }
@@ -386,7 +386,10 @@ mod tests {
     #[test]
     fn the_link_covariance_matches_sampled_links() {
         use rand::{RngExt, SeedableRng};
-        let b = hetsim_msgs::pose_from_xyz_rpy([0.6, 0.45, -0.5], [0.0, 1.5708, 0.0]);
+        let b = hetsim_msgs::pose_from_xyz_rpy(
+            [0.6, 0.45, -0.5],
+            [0.0, std::f64::consts::FRAC_PI_2, 0.0],
+        );
         let bk = hetsim_msgs::pose_from_xyz_rpy([0.35, 0.17, 1.4], [0.0, 0.14, 0.0]);
         let t = hetsim_msgs::pose_from_xyz_rpy([3.0, -1.0, 2.0], [0.2, -0.1, 2.9]);
         let l = nalgebra::Matrix6::from_fn(|i, j| match (i, j) {
