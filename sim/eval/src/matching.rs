@@ -22,7 +22,7 @@
 use hetsim_msgs::Pose;
 use hetsim_scene::Scenario;
 use hetsim_slam::report::SlamReport;
-use nalgebra::{Matrix6, Point3, Vector3, Vector6};
+use nalgebra::{Matrix6, Point3, Vector3};
 use serde::Serialize;
 use std::collections::BTreeMap;
 
@@ -138,14 +138,7 @@ pub fn judge(
                 let b = truth_of(&e.other).get(&link.other_stamp_ns).copied()?;
                 let err = link.z.inverse() * (a.inverse() * b);
                 let r = err.rotation.scaled_axis();
-                let x = Vector6::new(
-                    err.translation.x,
-                    err.translation.y,
-                    err.translation.z,
-                    r.x,
-                    r.y,
-                    r.z,
-                );
+                let x = hetsim_slam::graph::log(&err);
                 let nees = Matrix6::from_column_slice(&link.covariance)
                     .try_inverse()
                     .map_or(f64::INFINITY, |i| (x.transpose() * i * x)[0]);
