@@ -319,8 +319,16 @@ fn cooperative_slam_corrects_ressac_and_keeps_dala_within_one_percent() {
         );
         assert_eq!(c["unresolved_links"], 0, "{robot}: {c}");
         assert!(c["shares_received"].as_u64().unwrap() >= 2, "{robot}: {c}");
+        // Consistency on one run: a consistent filter's pose NEES is chi-square with 6
+        // degrees of freedom, within [0.381, 22.46] (its 0.1 % and 99.9 % quantiles) but
+        // for one sample in 500; the run's mean falls outside as rarely when its poses are
+        // fully correlated in time, and more rarely still when they are not. (When issue 17 was filed, Dala's mean was 192 here and Ressac's 42.)
+        // The Monte Carlo test over the full village is in `results/village/README.md`.
         let nees = slam["robots"][robot]["nees_mean"].as_f64().unwrap();
-        assert!(nees.is_finite() && nees > 0.0, "{robot}: NEES {nees}");
+        assert!(
+            (0.381..=22.46).contains(&nees),
+            "{robot}: mean NEES {nees:.2} outside [0.381, 22.46]"
+        );
         // Both robots map lines (measured when set: Dala 2358 line observations used,
         // Ressac 802).
         assert!(

@@ -74,7 +74,7 @@ pub use pipeline::SlamStack;
 mod events;
 
 mod params;
-pub use params::SlamParams;
+pub use params::{EdgeDrift, SlamParams};
 
 mod places;
 pub use places::PLACE_TOPIC;

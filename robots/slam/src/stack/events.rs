@@ -7,25 +7,11 @@ impl SlamCore {
     /// relative transform to a new node, and a new local map starts there.
     pub(super) fn new_submap(&mut self, stamp: u64) {
         let relative = self.map.pose();
-        // Information of the relative transform. The filter's own covariance comes from
-        // VO's, which only knows its random errors; the drift VO shows against the truth
-        // (1 to 6 % of the distance in the village) is systematic. The edge therefore gets a
-        // drift term of `edge_drift` of the distance travelled in the sub-map (each axis) and
-        // 0.1 degree per metre, so that events can pull the origins back.
+        // Information of the relative transform: the filter's own covariance, which comes
+        // from VO's random errors, and the drift VO shows against the truth, which is
+        // systematic (`EdgeDrift`), so that events can pull the origins back.
         let d = relative.translation.vector.norm();
-        let (st, sr) = (
-            self.params.edge_drift * d + 1e-3,
-            (0.1f64.to_radians() * d).max(1e-4),
-        );
-        let cov = self.map.pose_covariance()
-            + Matrix6::from_diagonal(&nalgebra::Vector6::new(
-                st * st,
-                st * st,
-                st * st,
-                sr * sr,
-                sr * sr,
-                sr * sr,
-            ));
+        let cov = self.map.pose_covariance() + self.params.edge_drift.covariance(d);
         let info = cov.try_inverse().unwrap_or_else(Matrix6::identity);
         let last = self.submaps() - 1;
         self.closed_points.extend(
