@@ -12,6 +12,9 @@ use plotters::prelude::*;
 use plotters::style::FontStyle;
 use std::sync::Once;
 
+mod coverage;
+pub use coverage::{coverage_map_png, stacked_boxes_png, CoverageMap, StackedBox};
+
 /// A figure's font family, registered once from the embedded DejaVu Sans.
 const FONT: &str = "sans-serif";
 
@@ -59,18 +62,84 @@ pub fn trajectories_png(
     series: &[Series<'_>],
     marks: &[Mark],
 ) -> Vec<u8> {
+    render(SIZE, |root| draw(root, title, truth, series, marks))
+}
+
+/// The PNG bytes of an image.
+pub fn png(img: &RgbImage) -> Vec<u8> {
+    let mut bytes = Vec::new();
+    img.write_to(
+        &mut std::io::Cursor::new(&mut bytes),
+        image::ImageFormat::Png,
+    )
+    .expect("PNG encodes in memory");
+    bytes
+}
+
+/// Draws a figure of `(width, height)` pixels on white with `draw`, as PNG bytes. Drawing
+/// into a memory buffer fails only on a defect of the figure's code.
+fn render(
+    (w, h): (u32, u32),
+    draw: impl FnOnce(&DrawingArea<BitMapBackend<'_>, Shift>) -> Result<()>,
+) -> Vec<u8> {
     register_font();
-    let (w, h) = SIZE;
     let mut buf = vec![255u8; (w * h * 3) as usize];
     {
         let root = BitMapBackend::with_buffer(&mut buf, (w, h)).into_drawing_area();
-        draw(&root, title, truth, series, marks)
-            .unwrap_or_else(|e| panic!("drawing into a memory buffer: {e}"));
-        root.present()
+        root.fill(&WHITE)
+            .and_then(|()| draw(&root))
+            .and_then(|()| root.present())
             .unwrap_or_else(|e| panic!("drawing into a memory buffer: {e}"));
     }
     let img = RgbImage::from_raw(w, h, buf).expect("the buffer is w x h x 3");
-    crate::plot::png(&img)
+    png(&img)
+}
+
+/// Where each legend entry goes in an area `width` pixels wide: `(x, row)` of its swatch,
+/// left to right, wrapping to a new row where the next would not fit.
+fn legend_layout(entries: &[(&str, ShapeStyle)], width: u32) -> Vec<(i32, i32)> {
+    let (mut x, mut row) = (90, 0);
+    let mut places = Vec::new();
+    for (label, _) in entries {
+        let w = 70 + 9 * label.chars().count() as i32;
+        if x > 90 && x + w - 20 > width as i32 {
+            (x, row) = (90, row + 1);
+        }
+        places.push((x, row));
+        x += w;
+    }
+    places
+}
+
+/// The height of the legend strip for `entries` in an area `width` pixels wide.
+fn legend_height(entries: &[(&str, ShapeStyle)], width: u32) -> u32 {
+    let rows = legend_layout(entries, width)
+        .last()
+        .map_or(1, |(_, row)| row + 1);
+    34 + 26 * (rows as u32 - 1)
+}
+
+/// Draws a legend in a strip of its own at the top of `area` (under a title: it never hides
+/// data), a swatch and a name per entry, and returns the rest of the area.
+fn legend<'a>(
+    area: &DrawingArea<BitMapBackend<'a>, Shift>,
+    entries: &[(&str, ShapeStyle)],
+) -> Result<DrawingArea<BitMapBackend<'a>, Shift>> {
+    let width = area.dim_in_pixel().0;
+    let (strip, rest) = area.split_vertically(legend_height(entries, width));
+    for ((label, style), (x, row)) in entries.iter().zip(legend_layout(entries, width)) {
+        let y = 26 * row;
+        if style.filled {
+            strip.draw(&Rectangle::new([(x, y + 9), (x + 30, y + 25)], *style))?;
+        } else {
+            strip.draw(&PathElement::new(
+                vec![(x, y + 17), (x + 30, y + 17)],
+                *style,
+            ))?;
+        }
+        strip.draw(&Text::new(label.to_string(), (x + 38, y + 8), (FONT, 16)))?;
+    }
+    Ok(rest)
 }
 
 type Result<T> = std::result::Result<
@@ -103,19 +172,13 @@ fn draw(
     root.fill(&WHITE)?;
     let root = root.titled(title, (FONT, 24))?;
     // The legend in a strip of its own under the title: it never hides data or marks.
-    let (strip, root) = root.split_vertically(34);
     let entries: Vec<(&str, ShapeStyle)> = series
         .iter()
         .enumerate()
         .map(|(k, s)| (s.label, COLOURS[k % COLOURS.len()].stroke_width(3)))
         .chain(std::iter::once(("truth", BLACK.stroke_width(3))))
         .collect();
-    let mut x = 90;
-    for (label, style) in &entries {
-        strip.draw(&PathElement::new(vec![(x, 17), (x + 30, 17)], *style))?;
-        strip.draw(&Text::new(label.to_string(), (x + 38, 8), (FONT, 16)))?;
-        x += 70 + 9 * label.chars().count() as i32;
-    }
+    let root = legend(&root, &entries)?;
     let (left, right) = root.split_horizontally(SIZE.1 as i32 - 20 - 34);
     let all = || {
         truth
@@ -215,18 +278,9 @@ fn draw(
 /// The robot pose's NEES averaged over `runs` Monte Carlo runs against time (log scale),
 /// with the two-sided 95 % interval `(lo, hi)` of a consistent estimate shaded, as PNG bytes.
 pub fn nees_png(robot: &str, avg: &[(f64, f64)], (lo, hi): (f64, f64), runs: usize) -> Vec<u8> {
-    register_font();
-    let (w, h) = (1000u32, 480u32);
-    let mut buf = vec![255u8; (w * h * 3) as usize];
-    {
-        let root = BitMapBackend::with_buffer(&mut buf, (w, h)).into_drawing_area();
-        draw_nees(&root, robot, avg, (lo, hi), runs)
-            .unwrap_or_else(|e| panic!("drawing into a memory buffer: {e}"));
-        root.present()
-            .unwrap_or_else(|e| panic!("drawing into a memory buffer: {e}"));
-    }
-    let img = RgbImage::from_raw(w, h, buf).expect("the buffer is w x h x 3");
-    crate::plot::png(&img)
+    render((1000, 480), |root| {
+        draw_nees(root, robot, avg, (lo, hi), runs)
+    })
 }
 
 fn draw_nees(

@@ -12,7 +12,6 @@ pub mod frames;
 pub mod localize;
 pub mod matching;
 pub mod metrics;
-pub mod plot;
 pub mod regress;
 pub mod report;
 pub mod results;

@@ -1,7 +1,7 @@
 //! `results/coverage-tables.md`: the reproduced Tables I and II and Figs. 3 and 4 of seed 002
 //! beside the paper's values.
 
-use crate::plot::{stacked_boxes, StackedBox};
+use crate::charts::{stacked_boxes_png, StackedBox};
 use crate::sweep::{load_sweep, run_sweep, SummaryCell, SweepSummary};
 use crate::EvalError;
 use hetsim_core::files::write_atomic;
@@ -127,7 +127,7 @@ pub fn coverage_report(
         .iter()
         .map(|&r| {
             (
-                format!("{}%", (r * 100.0) as u32),
+                format!("obstruction {} %", (r * 100.0) as u32),
                 boxes(&cells_with(&s1, ratio_ax, r), kids1),
             )
         })
@@ -136,14 +136,25 @@ pub fn coverage_report(
         .iter()
         .map(|&r| {
             (
-                format!("r={r}m"),
+                format!("r_los {r} m"),
                 boxes(&cells_with(&s2, rlos_ax, r), kids2),
             )
         })
         .collect();
-    for (name, panels) in [("coverage-fig3.png", fig3), ("coverage-fig4.png", fig4)] {
+    for (name, title, panels) in [
+        (
+            "coverage-fig3.png",
+            "Fig. 3: timesteps by number of children, r_los 2 m",
+            fig3,
+        ),
+        (
+            "coverage-fig4.png",
+            "Fig. 4: timesteps by number of children, obstruction 20 %",
+            fig4,
+        ),
+    ] {
         let path = root.join("results").join(name);
-        write_atomic(&path, &crate::plot::png(&stacked_boxes(&panels)))?;
+        write_atomic(&path, &stacked_boxes_png(title, &panels))?;
     }
     md.push_str("## Figs. 3 and 4: timesteps by number of children\n\nEach box is the distribution of total timesteps over the 10 maps of a cell (whiskers min-max, box quartiles, black line median); the fill is blue up to the median mapping timesteps and orange above (coordination). x: number of children 1-8.\n\n![Fig. 3: obstruction 0, 20, 40 %](coverage-fig3.png)\n\n![Fig. 4: r_los = 1, 2, 4, 8 m at 20 % (panel titles in metres)](coverage-fig4.png)\n\n");
     md.push_str("Mean timesteps per cell (mapping + coordination):\n\n| sweep | cell | mapping | coordination | total | coverage |\n|---|---|---|---|---|---|\n");

@@ -235,7 +235,7 @@ pub fn files(
     };
     let grid = &g.grid;
     let r = &outcome.report;
-    let png = |img: image::RgbImage| crate::plot::png(&img);
+    let png = |img: image::RgbImage| crate::charts::png(&img);
     let mut out = Vec::new();
     let mut entries = Vec::new();
     for d in &r.database {
@@ -291,18 +291,35 @@ pub fn files(
         .map_or([0.0, 0.0], |(_, p)| {
             [p.translation.vector.x, p.translation.vector.y]
         });
+    let plan = crate::charts::CoverageMap {
+        title: "coverage plan: parent vertices and the parent's tour (Fig. 5a)",
+        start,
+        parent_vertices: &parent_xy,
+        tour: true,
+        paths: &[],
+        grabs: &[],
+    };
     out.push((
         "plots/coverage-plan.png".into(),
-        png(crate::plot::coverage_plan_plot(grid, start, &parent_xy)),
+        crate::charts::coverage_map_png(grid, &plan),
     ));
-    let paths: Vec<Vec<[f64; 2]>> = r
+    let paths: Vec<(String, Vec<[f64; 2]>)> = r
         .tracked_paths
         .iter()
-        .map(|(_, p)| p.iter().map(|(_, xy)| *xy).collect())
+        .map(|(name, p)| (name.clone(), p.iter().map(|(_, xy)| *xy).collect()))
         .collect();
+    let grabs: Vec<[f64; 2]> = r.database.iter().map(|d| d.estimated_xy).collect();
+    let mission = crate::charts::CoverageMap {
+        title: "the children's tracked paths and their grabs (Fig. 5b)",
+        start,
+        parent_vertices: &parent_xy,
+        tour: false,
+        paths: &paths,
+        grabs: &grabs,
+    };
     out.push((
         "plots/coverage-paths.png".into(),
-        png(crate::plot::child_paths_plot(grid, &parent_xy, &paths)),
+        crate::charts::coverage_map_png(grid, &mission),
     ));
     out
 }

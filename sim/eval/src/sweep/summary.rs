@@ -145,8 +145,8 @@ pub fn summarize(sweep: &Sweep, out: &Path) -> Result<SweepSummary, SweepError> 
             shown_cells.join(" | ")
         ));
     }
-    if let Some(img) = boxplot(sweep, &stats) {
-        write_atomic(&out.join("boxplot.png"), &crate::plot::png(&img))?;
+    if let Some(png) = boxplot(sweep, &stats) {
+        write_atomic(&out.join("boxplot.png"), &png)?;
     }
     write_atomic(&out.join("runs.csv"), &csv_text(run_rows))?;
     write_atomic(&out.join("summary.csv"), &csv_text(summary))?;
@@ -160,10 +160,10 @@ pub fn summarize(sweep: &Sweep, out: &Path) -> Result<SweepSummary, SweepError> 
 
 /// Box plots in the style of Figs. 3 and 4 when the sweep varies `coverage.children`: one
 /// panel per combination of the other axes, one stacked box per number of children.
-fn boxplot(sweep: &Sweep, cells: &[SummaryCell]) -> Option<image::RgbImage> {
+fn boxplot(sweep: &Sweep, cells: &[SummaryCell]) -> Option<Vec<u8>> {
     let axes = sweep.axes();
     let kids = axes.iter().position(|a| a == "coverage.children")?;
-    let mut panels: Vec<(String, Vec<crate::plot::StackedBox>)> = Vec::new();
+    let mut panels: Vec<(String, Vec<crate::charts::StackedBox>)> = Vec::new();
     for cell in cells {
         let title: Vec<&str> = cell
             .values
@@ -173,7 +173,7 @@ fn boxplot(sweep: &Sweep, cells: &[SummaryCell]) -> Option<image::RgbImage> {
             .map(|(_, v)| v.as_str())
             .collect();
         let title = title.join(" ");
-        let b = crate::plot::StackedBox {
+        let b = crate::charts::StackedBox {
             label: cell.values[kids].clone(),
             mapping: cell.stat("mapping_timesteps").samples.clone(),
             coordination: cell.stat("coordination_timesteps").samples.clone(),
@@ -183,5 +183,8 @@ fn boxplot(sweep: &Sweep, cells: &[SummaryCell]) -> Option<image::RgbImage> {
             None => panels.push((title, vec![b])),
         }
     }
-    Some(crate::plot::stacked_boxes(&panels))
+    Some(crate::charts::stacked_boxes_png(
+        &format!("{}: timesteps by number of children", sweep.file.name),
+        &panels,
+    ))
 }
