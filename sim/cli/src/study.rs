@@ -221,6 +221,14 @@ pub fn localize(
     let md = hetsim_eval::localize::markdown(&summary);
     hetsim_core::files::write_atomic(&out.join("localization.json"), &json)?;
     hetsim_core::files::write_atomic(&out.join("localization.md"), md.as_bytes())?;
+    let png = hetsim_eval::charts::localization_png(
+        &format!(
+            "{}: particle filter error along {paths} new paths, by image feature",
+            base.file.name
+        ),
+        &pf,
+    );
+    hetsim_core::files::write_atomic(&out.join("localization.png"), &png)?;
     println!("{md}");
     println!("results: {}", out.display());
     Ok(())

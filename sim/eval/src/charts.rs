@@ -13,7 +13,9 @@ use plotters::style::FontStyle;
 use std::sync::Once;
 
 mod coverage;
+mod localization;
 pub use coverage::{coverage_map_png, stacked_boxes_png, CoverageMap, StackedBox};
+pub use localization::localization_png;
 
 /// A figure's font family, registered once from the embedded DejaVu Sans.
 const FONT: &str = "sans-serif";

@@ -190,6 +190,8 @@ pub struct PathRun {
     pub steps: usize,
     /// Error of the estimate after each image, metres.
     pub errors_m: Vec<f64>,
+    /// Distance driven when each image was taken (the true path's length so far), metres.
+    pub distance_m: Vec<f64>,
     /// The first step from which the error stays under 0.5 m, if any.
     pub converged_at: Option<usize>,
     /// Error at the end, metres.
@@ -315,7 +317,17 @@ pub fn particle_filter_path(
                 errors.push((e[0] - true_xy[i][0]).hypot(e[1] - true_xy[i][1]));
             }
             let converged_at = (0..errors.len()).find(|&i| errors[i..].iter().all(|e| *e < 0.5));
+            let distance_m = true_xy
+                .iter()
+                .scan((0.0, true_xy[0]), |(d, last), p| {
+                    *d += (p[0] - last[0]).hypot(p[1] - last[1]);
+                    *last = *p;
+                    Some(*d)
+                })
+                .take(errors.len())
+                .collect();
             PathRun {
+                distance_m,
                 feature: feature.name().into(),
                 steps: errors.len(),
                 final_error_m: *errors.last().unwrap_or(&f64::NAN),
