@@ -256,8 +256,7 @@ impl StereoVo {
         rng: &mut impl rand::Rng,
     ) -> Option<Motion> {
         use crate::harris::{detect_with_max, select_new};
-        use crate::matching::{search_pyramid, Template};
-        let cam = self.bench.camera;
+        use crate::matching::Template;
         (self.corners, self.max_response) = detect_with_max(left, 0.005, 8);
         let corners = &self.corners;
         let chosen = select_new(corners, left.width, left.height, &[], self.per_region, 8.0);
@@ -274,37 +273,18 @@ impl StereoVo {
         let mut motion = None;
         if let Some(prev) = &self.previous {
             // Without a trusted velocity the prediction is poor: search five times wider.
-            let sigma = if self.lost {
-                5.0 * self.search_px
-            } else {
-                self.search_px
-            };
-            let mut data = Vec::new();
-            let s = sigma * sigma;
-            for (template, p) in prev {
-                let predicted = self.velocity * nalgebra::Point3::from(*p);
-                let Some(uv) = cam.project(&predicted.coords) else {
-                    continue;
-                };
-                let ellipse = [[s, 0.0], [0.0, s]];
-                let Some(m) = search_pyramid(left, &half, template, uv, ellipse, 9.21, 0.8, 3.0)
-                else {
-                    continue;
-                };
-                // The point's 3D position now: a stereo point triangulated at the match.
-                let Some(near) = points.iter().find(|q| {
-                    let (dx, dy) = (q.left[0] - m.x, q.left[1] - m.y);
-                    dx * dx + dy * dy < 1.5 * 1.5
-                }) else {
-                    continue;
-                };
-                data.push(Correspondence {
-                    previous: *p,
-                    current: near.point,
-                    pixel: [m.x, m.y],
-                });
+            // With one, a sudden change of motion (a helicopter starting a 30 deg/s turn:
+            // image edges 25 px off the prediction) can leave the narrow search with too few
+            // matches; the same pair is then searched again five times wider rather than
+            // lost, since a lost pair's motion is never recovered (measured: the village's
+            // Ressac lost the pair at the start of its first turn, and with it 3.6 deg of
+            // tilt that its estimate kept for the rest of the flight).
+            let wide = 5.0 * self.search_px;
+            let first = if self.lost { wide } else { self.search_px };
+            motion = self.track(prev, left, &half, &points, first, rng);
+            if motion.is_none() && !self.lost {
+                motion = self.track(prev, left, &half, &points, wide, rng);
             }
-            motion = estimate(&cam, &data, 150, 2.0, 12, rng);
             self.lost = motion.is_none();
             if let Some(m) = &motion {
                 self.velocity = m.current_from_previous;
@@ -325,6 +305,48 @@ impl StereoVo {
         self.half = Some(half);
         self.points = points;
         motion
+    }
+
+    /// Matches the previous pair's points in `left` inside ellipses of `sigma` pixels (1σ)
+    /// around their constant-velocity predictions, pairs each with the stereo point found at
+    /// the match, and estimates the motion from them.
+    fn track(
+        &self,
+        prev: &[(crate::matching::Template, Vector3<f64>)],
+        left: &crate::Gray,
+        half: &crate::Gray,
+        points: &[crate::stereo::StereoPoint],
+        sigma: f64,
+        rng: &mut impl rand::Rng,
+    ) -> Option<Motion> {
+        let cam = self.bench.camera;
+        let s = sigma * sigma;
+        let ellipse = [[s, 0.0], [0.0, s]];
+        let mut data = Vec::new();
+        for (template, p) in prev {
+            let predicted = self.velocity * nalgebra::Point3::from(*p);
+            let Some(uv) = cam.project(&predicted.coords) else {
+                continue;
+            };
+            let Some(m) =
+                crate::matching::search_pyramid(left, half, template, uv, ellipse, 9.21, 0.8, 3.0)
+            else {
+                continue;
+            };
+            // The point's 3D position now: a stereo point triangulated at the match.
+            let Some(near) = points.iter().find(|q| {
+                let (dx, dy) = (q.left[0] - m.x, q.left[1] - m.y);
+                dx * dx + dy * dy < 1.5 * 1.5
+            }) else {
+                continue;
+            };
+            data.push(Correspondence {
+                previous: *p,
+                current: near.point,
+                pixel: [m.x, m.y],
+            });
+        }
+        estimate(&cam, &data, 150, 2.0, 12, rng)
     }
 
     /// The depths stereo matching searches this frame: the whole range on the first frame,
