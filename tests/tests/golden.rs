@@ -144,6 +144,12 @@ fn check(name: &str, args: &[&str], golden: PerAdapter) -> bool {
 // only the manifest's digest and timing.json differ besides). The village-short figures
 // are drawn by the same code as before and did not move. Before: lab 1866b220 / a9c7e2b6,
 // indoor-team 247cfdca / d49e1b10.
+//
+// The village-short digests moved with the VO's wide retry of a pair its narrow search loses
+// (c6db860): Ressac's VO keeps the pairs where its turns start, so its VO, both SLAM
+// estimates, the map, the events and every figure moved; Dala's VO, which loses no pair
+// there, did not. The lab and indoor runs have no VO and did not move. Before:
+// village-short e37107e7 / 490c6a37.
 
 #[test]
 fn golden_lab_mission() {
@@ -207,12 +213,12 @@ fn golden_rendered_village_short() {
             (
                 LAVAPIPE.0,
                 LAVAPIPE.1,
-                "e37107e703e6a8e074796b03d990e3db16f0687a3a1299948b33a84695e3f452",
+                "eeb59e152f4e10f1e6fdeaef9a155f6e7a3000111eb00ffe707ce2cddacd7634",
             ),
             (
                 LLVMPIPE_GL.0,
                 LLVMPIPE_GL.1,
-                "490c6a37b0b35c7c97e18b17969e58611482c9ebd5943fe6a139cb448b490c7e",
+                "33a67562f1a96cb7016b94a22a6144f770bf620020fd436805df7587adb20472",
             ),
         ],
     );
