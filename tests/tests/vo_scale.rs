@@ -151,7 +151,9 @@ fn stereo_vo_recovers_dumped_frame_to_frame_translation_without_scale_bias() {
 /// within a frame, which moves the image edges about 25 px off the constant-velocity
 /// prediction. Every pair from 9.5 s to 11.5 s must be tracked (a lost pair's motion is never
 /// recovered), and the motion composed over the 2 s must match the true one: within 0.5 deg,
-/// a fifth of what the first turning frame alone rotates (2.4 deg), and 0.2 m.
+/// a fifth of what the first turning frame alone rotates (2.4 deg), and 0.2 m: above the
+/// 0.14 m that the helicopter's tested VO drift (3 % of the distance) allows over the 4.5 m
+/// flown, and below the 0.23 m a dropped pair's motion takes away at this speed.
 #[test]
 fn stereo_vo_tracks_the_helicopter_into_its_first_turn() {
     let path = repo().join("scenarios/village.toml");
@@ -180,7 +182,12 @@ fn stereo_vo_tracks_the_helicopter_into_its_first_turn() {
         },
     );
     dump.finish().unwrap();
-    let b = hetsim_stacks::stereo_bench(&scenario.robots[1]).unwrap();
+    let ressac = scenario
+        .robots
+        .iter()
+        .find(|r| r.spec.name == "ressac")
+        .expect("the village has Ressac");
+    let b = hetsim_stacks::stereo_bench(ressac).unwrap();
     let k = b.intrinsics;
     let bench = Bench {
         camera: Camera {
@@ -195,6 +202,13 @@ fn stereo_vo_tracks_the_helicopter_into_its_first_turn() {
     let (left, right) = (dir.join("stereo_left"), dir.join("stereo_right"));
     let truth = tum(&dir.join("stereo_left.tum"));
     let (l, r) = (frames_of(&left), frames_of(&right));
+    assert_eq!(l.len(), 21, "10 Hz from 9.5 s to 11.5 s");
+    assert_eq!(l.len(), r.len(), "as many left as right frames");
+    assert_eq!(l.len(), truth.len(), "a true pose per frame");
+    assert!(
+        l.iter().zip(&r).all(|(a, b)| a.0 == b.0),
+        "pairs share stamps"
+    );
     let mut vo = StereoVo::new(bench);
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(1);
     let mut composed = Pose::identity();

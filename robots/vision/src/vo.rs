@@ -172,7 +172,8 @@ pub fn estimate(
 /// new left image with the previous motion (constant velocity) and matched by ZNCC inside an
 /// ellipse of `search_px` pixels (1σ) around each prediction; the motion is estimated from
 /// those correspondences. Until a motion is known (first frames, or after a failure) the
-/// search is five times wider.
+/// search is five times wider; a pair the narrow search fails on is searched again five
+/// times wider before it is given up.
 ///
 /// Two savings keep a 1024 x 768 pair within its time: the ellipse is searched coarse to
 /// fine (at half resolution, then within 2 px at full resolution), and stereo matching

@@ -1,4 +1,4 @@
-//! Trajectory figures drawn with `plotters`: axes with ticks and units, a title, a legend
+//! Every figure hetsim draws, with `plotters`: axes with ticks and units, a title, a legend
 //! naming every series, text in DejaVu Sans (embedded, so a figure is the same bytes on any
 //! machine, with no system font or font library).
 //!
@@ -97,9 +97,26 @@ fn render(
     png(&img)
 }
 
+/// How a legend entry shows its mark: as the figure draws it.
+#[derive(Clone, Copy)]
+enum Swatch {
+    /// A line (a series).
+    Line(ShapeStyle),
+    /// A filled area (a bar, an obstacle).
+    Area(ShapeStyle),
+    /// A dot.
+    Dot(ShapeStyle),
+    /// A small square.
+    Square(ShapeStyle),
+    /// A cross.
+    Cross(ShapeStyle),
+    /// A triangle.
+    Triangle(ShapeStyle),
+}
+
 /// Where each legend entry goes in an area `width` pixels wide: `(x, row)` of its swatch,
 /// left to right, wrapping to a new row where the next would not fit.
-fn legend_layout(entries: &[(&str, ShapeStyle)], width: u32) -> Vec<(i32, i32)> {
+fn legend_layout(entries: &[(&str, Swatch)], width: u32) -> Vec<(i32, i32)> {
     let (mut x, mut row) = (90, 0);
     let mut places = Vec::new();
     for (label, _) in entries {
@@ -114,7 +131,7 @@ fn legend_layout(entries: &[(&str, ShapeStyle)], width: u32) -> Vec<(i32, i32)> 
 }
 
 /// The height of the legend strip for `entries` in an area `width` pixels wide.
-fn legend_height(entries: &[(&str, ShapeStyle)], width: u32) -> u32 {
+fn legend_height(entries: &[(&str, Swatch)], width: u32) -> u32 {
     let rows = legend_layout(entries, width)
         .last()
         .map_or(1, |(_, row)| row + 1);
@@ -125,19 +142,28 @@ fn legend_height(entries: &[(&str, ShapeStyle)], width: u32) -> u32 {
 /// data), a swatch and a name per entry, and returns the rest of the area.
 fn legend<'a>(
     area: &DrawingArea<BitMapBackend<'a>, Shift>,
-    entries: &[(&str, ShapeStyle)],
+    entries: &[(&str, Swatch)],
 ) -> Result<DrawingArea<BitMapBackend<'a>, Shift>> {
     let width = area.dim_in_pixel().0;
     let (strip, rest) = area.split_vertically(legend_height(entries, width));
     for ((label, style), (x, row)) in entries.iter().zip(legend_layout(entries, width)) {
         let y = 26 * row;
-        if style.filled {
-            strip.draw(&Rectangle::new([(x, y + 9), (x + 30, y + 25)], *style))?;
-        } else {
-            strip.draw(&PathElement::new(
+        match *style {
+            Swatch::Line(style) => strip.draw(&PathElement::new(
                 vec![(x, y + 17), (x + 30, y + 17)],
-                *style,
-            ))?;
+                style,
+            ))?,
+            Swatch::Area(style) => {
+                strip.draw(&Rectangle::new([(x, y + 9), (x + 30, y + 25)], style))?
+            }
+            Swatch::Dot(style) => strip.draw(&Circle::new((x + 15, y + 17), 3, style))?,
+            Swatch::Square(style) => {
+                strip.draw(&Rectangle::new([(x + 9, y + 11), (x + 21, y + 23)], style))?
+            }
+            Swatch::Cross(style) => strip.draw(&Cross::new((x + 15, y + 17), 5, style))?,
+            Swatch::Triangle(style) => {
+                strip.draw(&TriangleMarker::new((x + 15, y + 17), 8, style))?
+            }
         }
         strip.draw(&Text::new(label.to_string(), (x + 38, y + 8), (FONT, 16)))?;
     }
@@ -171,14 +197,21 @@ fn draw(
     series: &[Series<'_>],
     marks: &[Mark],
 ) -> Result<()> {
-    root.fill(&WHITE)?;
     let root = root.titled(title, (FONT, 24))?;
     // The legend in a strip of its own under the title: it never hides data or marks.
-    let entries: Vec<(&str, ShapeStyle)> = series
+    let entries: Vec<(&str, Swatch)> = series
         .iter()
         .enumerate()
-        .map(|(k, s)| (s.label, COLOURS[k % COLOURS.len()].stroke_width(3)))
-        .chain(std::iter::once(("truth", BLACK.stroke_width(3))))
+        .map(|(k, s)| {
+            (
+                s.label,
+                Swatch::Line(COLOURS[k % COLOURS.len()].stroke_width(3)),
+            )
+        })
+        .chain(std::iter::once((
+            "truth",
+            Swatch::Line(BLACK.stroke_width(3)),
+        )))
         .collect();
     let root = legend(&root, &entries)?;
     let (left, right) = root.split_horizontally(SIZE.1 as i32 - 20 - 34);
@@ -292,7 +325,6 @@ fn draw_nees(
     (lo, hi): (f64, f64),
     runs: usize,
 ) -> Result<()> {
-    root.fill(&WHITE)?;
     let pts: Vec<(f64, f64)> = avg
         .iter()
         .copied()

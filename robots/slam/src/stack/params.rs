@@ -121,16 +121,20 @@ impl SlamParams {
 /// know: VO's covariance holds its random pixel errors, but against the truth it also drifts
 /// systematically (a stereo depth bias scales the translation; small rotation errors tilt it).
 /// The graph edge of a sub-map of length `d` gets an independent 1σ of `translation * d` on
-/// each axis of the sub-map's origin frame (x forward, y left, z up) and `rotation_deg_per_m *
-/// d` on roll, pitch and yaw, so that events can pull the origins back and the pose covariance
-/// covers the error.
+/// each axis and `rotation_deg_per_m * d` on roll, pitch and yaw, in the frame the edge's
+/// covariance is in (a right perturbation: the robot's body at the sub-map's end, x forward,
+/// y left, z up), so that events can pull the origins back and the pose covariance covers
+/// the error.
 ///
 /// Calibration (issue 17): the full village, seeds 1 to 5, with 3 % and 0.1 degree per metre
 /// on every axis, gave each axis's mean squared error over its variance (1 if consistent):
 /// Dala x 0.18, y 0.59, z 0.41, roll 0.43, pitch 0.17, yaw 0.49 (too large a drift); Ressac
 /// x 1.04, y 1.02, z 2.04, roll 1.01, pitch 2.45, yaw 1.22 (the nadir bench's altitude and
 /// pitch drift faster: 0.9 m of baseline seen from 40 m). Each axis's σ was scaled by the
-/// square root of its ratio. The check is on other seeds (6 to 10): `results/README.md`.
+/// square root of its ratio. Most of Ressac's extra altitude and pitch drift was the tilt its
+/// VO lost where a turn starts, which the VO no longer loses (c6db860): with that VO, seeds 6
+/// to 10 measure every ratio again (`results/README.md`), and these values are too large
+/// for both robots now; the next calibration starts from those ratios.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct EdgeDrift {
     /// Translation drift as a fraction of the distance, x, y, z.
@@ -157,8 +161,8 @@ impl EdgeDrift {
     }
 
     /// The drift covariance of a relative transform `d` metres long (translation, then
-    /// rotation), with floors of 1 mm and 1e-4 rad so that a standing robot's edge stays
-    /// invertible.
+    /// rotation): 1 mm is added to each translation σ and each rotation σ is at least 1e-4
+    /// rad, so that a standing robot's edge stays invertible.
     pub fn covariance(&self, d: f64) -> nalgebra::Matrix6<f64> {
         let t = self.translation.map(|f| f * d + 1e-3);
         let r = self

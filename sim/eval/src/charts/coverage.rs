@@ -4,7 +4,7 @@
 //! tour; the children's tracked paths and the places they grabbed their images). Every figure
 //! has axes with ticks and units, a title and a legend naming each mark.
 
-use super::{legend, legend_height, render, Result, COLOURS, FONT};
+use super::{legend, legend_height, render, Result, Swatch, COLOURS, FONT};
 use hetsim_msgs::OccupancyGrid;
 use plotters::coord::Shift;
 use plotters::prelude::*;
@@ -58,9 +58,12 @@ fn draw_boxes(
     let root = legend(
         &root,
         &[
-            ("mapping, median", MAPPING.filled()),
-            ("coordination, median", COORDINATION.filled()),
-            ("total: median, quartiles, min-max", BLACK.stroke_width(2)),
+            ("mapping, median", Swatch::Area(MAPPING.filled())),
+            ("coordination, median", Swatch::Area(COORDINATION.filled())),
+            (
+                "total: median, quartiles, min-max",
+                Swatch::Line(BLACK.stroke_width(2)),
+            ),
         ],
     )?;
     let totals = |b: &StackedBox| -> Vec<f64> {
@@ -162,24 +165,25 @@ pub fn coverage_map_png(grid: &OccupancyGrid, map: &CoverageMap<'_>) -> Vec<u8> 
     );
     // Pixels per metre: the larger side about 900 pixels, at most 80 per metre.
     let scale = (900.0 / wm.max(hm)).min(80.0);
-    let mut entries: Vec<(&str, ShapeStyle)> = vec![
-        ("obstacle", OBSTACLE.filled()),
-        ("vertex", VERTEX.filled()),
-        ("parent vertex", MAPPING.filled()),
+    let mut entries: Vec<(&str, Swatch)> = vec![
+        ("obstacle", Swatch::Area(OBSTACLE.filled())),
+        ("vertex", Swatch::Dot(VERTEX.filled())),
+        ("parent vertex", Swatch::Square(MAPPING.filled())),
     ];
     if map.tour {
-        entries.push(("parent's tour", COORDINATION.stroke_width(3)));
+        entries.push(("parent's tour", Swatch::Line(COORDINATION.stroke_width(3))));
     }
     for (k, (name, _)) in map.paths.iter().enumerate() {
-        entries.push((name.as_str(), child_colour(k).stroke_width(3)));
+        entries.push((name.as_str(), Swatch::Line(child_colour(k).stroke_width(3))));
     }
     if !map.grabs.is_empty() {
-        entries.push(("image grabbed", BLACK.stroke_width(2)));
+        entries.push(("image grabbed", Swatch::Cross(BLACK.stroke_width(2))));
     }
-    entries.push(("start", BLACK.filled()));
+    entries.push(("start", Swatch::Triangle(BLACK.filled())));
     let (label_x, label_y, margin) = (50u32, 70u32, 15u32);
     let width = (wm * scale) as u32 + label_y + 2 * margin;
-    // The title's 40 pixels and the legend's strip above the map.
+    // Room for the title (about 26 pixels, and a margin) and the legend's strip above the
+    // map; the scales are made equal from the area that is left (`draw_map`).
     let head = 40 + legend_height(&entries, width);
     let size = (width, (hm * scale) as u32 + label_x + 2 * margin + head);
     render(size, |root| {
@@ -191,7 +195,7 @@ fn draw_map(
     root: &DrawingArea<BitMapBackend<'_>, Shift>,
     grid: &OccupancyGrid,
     map: &CoverageMap<'_>,
-    entries: &[(&str, ShapeStyle)],
+    entries: &[(&str, Swatch)],
     (label_x, label_y, margin): (u32, u32, u32),
 ) -> Result<()> {
     let root = root.titled(map.title, (FONT, 20))?;
@@ -413,7 +417,10 @@ mod tests {
                 grabs: &[[0.25, 0.25]],
             },
         ));
-        let body = |c: RGBColor| count(&img, c, 0..img.width(), BODY);
+        // The chart is the bottom of the figure: the 2 m of grid at 80 px/m, the x labels'
+        // 50 px and the margins' 30; the title and the wrapped legend lie above it.
+        let chart = img.height() - (160 + 50 + 30)..;
+        let body = |c: RGBColor| count(&img, c, 0..img.width(), chart.clone());
         // One occupied cell of 40 x 40 px (the tour or a path may cross it).
         let grey = body(OBSTACLE);
         assert!(

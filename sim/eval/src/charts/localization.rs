@@ -2,7 +2,7 @@
 //! filter error against the distance driven, one colour per image feature, on a logarithmic
 //! error axis with the 0.5 m convergence threshold marked.
 
-use super::{legend, render, Result, COLOURS, FONT};
+use super::{legend, render, Result, Swatch, COLOURS, FONT};
 use crate::localize::PathRun;
 use plotters::coord::Shift;
 use plotters::prelude::*;
@@ -26,11 +26,11 @@ fn draw(root: &DrawingArea<BitMapBackend<'_>, Shift>, title: &str, runs: &[PathR
     }
     let colour = |f: &str| COLOURS[features.iter().position(|g| *g == f).unwrap_or(0) % 6];
     let grey = RGBColor(110, 110, 110);
-    let mut entries: Vec<(&str, ShapeStyle)> = features
+    let mut entries: Vec<(&str, Swatch)> = features
         .iter()
-        .map(|f| (*f, colour(f).stroke_width(2)))
+        .map(|f| (*f, Swatch::Line(colour(f).stroke_width(2))))
         .collect();
-    entries.push(("converged (0.5 m)", grey.stroke_width(1)));
+    entries.push(("converged (0.5 m)", Swatch::Line(grey.stroke_width(1))));
     let root = legend(&root, &entries)?;
     let d_max = runs
         .iter()

@@ -240,8 +240,8 @@ pub fn section(dirs: &[PathBuf]) -> Result<(String, Files), EvalError> {
          (chi-square with {} degrees of freedom over {n}, two-sided 95 %) at 95 % of the \
          times or more. The mean over the whole run is judged against the same interval: one \
          run's poses are correlated in time, and treating them as one sample per run is the \
-         cautious reading (as independent samples, the interval would narrow to a few \
-         hundredths around 6).\n",
+         cautious reading (as independent samples, the interval would narrow to about a \
+         tenth around 6).\n",
         6 * n
     );
     let _ = writeln!(
