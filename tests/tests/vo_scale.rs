@@ -11,7 +11,7 @@
 use hetsim_engine::frames::FrameDump;
 use hetsim_engine::RunOptions;
 use hetsim_msgs::Pose;
-use hetsim_scene::{load_scenario, LoadOptions};
+use hetsim_scene::{load_scenario, LoadOptions, Scenario};
 use hetsim_tests::{repo, run_scenario};
 use hetsim_vision::stereo::Bench;
 use hetsim_vision::vo::StereoVo;
@@ -89,24 +89,22 @@ fn median(mut v: Vec<f64>) -> f64 {
     v[v.len() / 2]
 }
 
-#[test]
-fn stereo_vo_recovers_dumped_frame_to_frame_translation_without_scale_bias() {
-    let path = repo().join("scenarios/village.toml");
-    // 3 s to 7 s: the rover is under way on its first leg, the helicopter on its first line.
+/// Runs the village to `to` seconds with its pilots, dumping `robots`' stereo frames taken
+/// within `[from, to]` under the returned folder's `frames/`; also returns the scenario.
+fn dump_village(from: f64, to: f64, robots: &[&str]) -> (tempfile::TempDir, Scenario) {
     let scenario = load_scenario(
-        &path,
+        &repo().join("scenarios/village.toml"),
         &LoadOptions {
-            duration_secs: Some(7.0),
+            duration_secs: Some(to),
             ..LoadOptions::default()
         },
     )
     .unwrap();
     let out = tempfile::tempdir().unwrap();
-    let frames = out.path().join("frames");
     let mut dump = FrameDump::new(
-        &frames,
-        Some((3.0, 7.0)),
-        Some(vec!["dala/stereo".into(), "ressac/stereo".into()]),
+        &out.path().join("frames"),
+        Some((from, to)),
+        Some(robots.iter().map(|r| format!("{r}/stereo")).collect()),
     );
     run_scenario(
         &scenario,
@@ -118,18 +116,36 @@ fn stereo_vo_recovers_dumped_frame_to_frame_translation_without_scale_bias() {
         },
     );
     dump.finish().unwrap();
-    for (i, robot) in ["dala", "ressac"].iter().enumerate() {
-        let b = hetsim_stacks::stereo_bench(&scenario.robots[i]).unwrap();
-        let k = b.intrinsics;
-        let bench = Bench {
-            camera: Camera {
-                alpha_u: k.alpha_u,
-                alpha_v: k.alpha_v,
-                u0: k.u0,
-                v0: k.v0,
-            },
-            baseline_m: b.baseline_m,
-        };
+    (out, scenario)
+}
+
+/// The stereo bench of the scenario's robot `name`, as the VO takes it.
+fn bench_of(scenario: &Scenario, name: &str) -> Bench {
+    let robot = scenario
+        .robots
+        .iter()
+        .find(|r| r.spec.name == name)
+        .unwrap_or_else(|| panic!("the village has {name}"));
+    let b = hetsim_stacks::stereo_bench(robot).unwrap();
+    let k = b.intrinsics;
+    Bench {
+        camera: Camera {
+            alpha_u: k.alpha_u,
+            alpha_v: k.alpha_v,
+            u0: k.u0,
+            v0: k.v0,
+        },
+        baseline_m: b.baseline_m,
+    }
+}
+
+#[test]
+fn stereo_vo_recovers_dumped_frame_to_frame_translation_without_scale_bias() {
+    // 3 s to 7 s: the rover is under way on its first leg, the helicopter on its first line.
+    let (out, scenario) = dump_village(3.0, 7.0, &["dala", "ressac"]);
+    let frames = out.path().join("frames");
+    for robot in ["dala", "ressac"] {
+        let bench = bench_of(&scenario, robot);
         let r = ratios(&frames, robot, bench);
         let m = median(r.clone());
         let (lo, hi) = (
@@ -156,48 +172,9 @@ fn stereo_vo_recovers_dumped_frame_to_frame_translation_without_scale_bias() {
 /// flown, and below the 0.23 m a dropped pair's motion takes away at this speed.
 #[test]
 fn stereo_vo_tracks_the_helicopter_into_its_first_turn() {
-    let path = repo().join("scenarios/village.toml");
-    let scenario = load_scenario(
-        &path,
-        &LoadOptions {
-            duration_secs: Some(11.5),
-            ..LoadOptions::default()
-        },
-    )
-    .unwrap();
-    let out = tempfile::tempdir().unwrap();
+    let (out, scenario) = dump_village(9.5, 11.5, &["ressac"]);
     let frames = out.path().join("frames");
-    let mut dump = FrameDump::new(
-        &frames,
-        Some((9.5, 11.5)),
-        Some(vec!["ressac/stereo".into()]),
-    );
-    run_scenario(
-        &scenario,
-        RunOptions {
-            render: Some(hetsim_render::RenderOptions::default()),
-            dump: Some(&mut dump),
-            frames_only: true,
-            ..RunOptions::default()
-        },
-    );
-    dump.finish().unwrap();
-    let ressac = scenario
-        .robots
-        .iter()
-        .find(|r| r.spec.name == "ressac")
-        .expect("the village has Ressac");
-    let b = hetsim_stacks::stereo_bench(ressac).unwrap();
-    let k = b.intrinsics;
-    let bench = Bench {
-        camera: Camera {
-            alpha_u: k.alpha_u,
-            alpha_v: k.alpha_v,
-            u0: k.u0,
-            v0: k.v0,
-        },
-        baseline_m: b.baseline_m,
-    };
+    let bench = bench_of(&scenario, "ressac");
     let dir = frames.join("ressac");
     let (left, right) = (dir.join("stereo_left"), dir.join("stereo_right"));
     let truth = tum(&dir.join("stereo_left.tum"));
