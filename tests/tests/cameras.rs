@@ -100,7 +100,8 @@ fn frames_are_dumped_in_the_euroc_layout() {
         vec!["child2", "parent"],
         "only the cameras asked for"
     );
-    let cam = frames.join("child2/camera");
+    // One EuRoC dataset per robot: child2's only camera is its cam0.
+    let cam = frames.join("child2/mav0/cam0");
     let csv = std::fs::read_to_string(cam.join("data.csv")).unwrap();
     let lines: Vec<&str> = csv.lines().collect();
     assert_eq!(lines[0], "#timestamp [ns],filename");
@@ -135,6 +136,7 @@ fn frames_are_dumped_in_the_euroc_layout() {
         "sensor_type: camera",
         "T_BS:",
         "rate_hz: 2",
+        "comment: hetsim camera child2/camera",
         "resolution: [120, 88]",
         "camera_model: pinhole",
         "intrinsics: [",
@@ -142,7 +144,7 @@ fn frames_are_dumped_in_the_euroc_layout() {
     ] {
         assert!(yaml.contains(key), "{key} in {yaml}");
     }
-    let tum = std::fs::read_to_string(frames.join("child2/camera.tum")).unwrap();
+    let tum = std::fs::read_to_string(cam.join("world_from_optical.tum")).unwrap();
     assert_eq!(tum.lines().count(), 3);
     for line in tum.lines() {
         assert_eq!(
@@ -152,9 +154,11 @@ fn frames_are_dumped_in_the_euroc_layout() {
             8
         );
     }
-    let omni = std::fs::read_to_string(frames.join("parent/omni/data.csv")).unwrap();
+    // The parent's laser is not a camera: its omnidirectional camera, the only one asked
+    // for, is its cam0.
+    let omni = std::fs::read_to_string(frames.join("parent/mav0/cam0/data.csv")).unwrap();
     assert_eq!(omni.lines().count(), 1 + 6, "5 Hz over [1, 2] s");
-    let pano = image::open(frames.join("parent/omni/data/1000000000.png")).unwrap();
+    let pano = image::open(frames.join("parent/mav0/cam0/data/1000000000.png")).unwrap();
     assert_eq!((pano.width(), pano.height()), (780, 580));
     assert!(
         !dir.path().read_dir().unwrap().any(|e| e

@@ -56,9 +56,10 @@ fn gray(path: &Path) -> Gray {
 
 /// Per tracked frame of `robot`'s stereo bench: estimated over true translation length.
 fn ratios(frames: &Path, robot: &str, bench: Bench) -> Vec<f64> {
-    let dir = frames.join(robot);
-    let (left, right) = (dir.join("stereo_left"), dir.join("stereo_right"));
-    let truth = tum(&dir.join("stereo_left.tum"));
+    // The robot's EuRoC dataset: its stereo bench is cam0 (left) and cam1 (right).
+    let dir = frames.join(robot).join("mav0");
+    let (left, right) = (dir.join("cam0"), dir.join("cam1"));
+    let truth = tum(&left.join("world_from_optical.tum"));
     let (l, r) = (frames_of(&left), frames_of(&right));
     assert_eq!(l.len(), r.len(), "{robot}: as many left as right frames");
     assert_eq!(l.len(), truth.len(), "{robot}: a true pose per frame");
@@ -115,7 +116,6 @@ fn dump_village(from: f64, to: f64, robots: &[&str]) -> (tempfile::TempDir, Scen
             ..RunOptions::default()
         },
     );
-    dump.finish().unwrap();
     (out, scenario)
 }
 
@@ -175,9 +175,9 @@ fn stereo_vo_tracks_the_helicopter_into_its_first_turn() {
     let (out, scenario) = dump_village(9.5, 11.5, &["ressac"]);
     let frames = out.path().join("frames");
     let bench = bench_of(&scenario, "ressac");
-    let dir = frames.join("ressac");
-    let (left, right) = (dir.join("stereo_left"), dir.join("stereo_right"));
-    let truth = tum(&dir.join("stereo_left.tum"));
+    let dir = frames.join("ressac").join("mav0");
+    let (left, right) = (dir.join("cam0"), dir.join("cam1"));
+    let truth = tum(&left.join("world_from_optical.tum"));
     let (l, r) = (frames_of(&left), frames_of(&right));
     assert_eq!(l.len(), 21, "10 Hz from 9.5 s to 11.5 s");
     assert_eq!(l.len(), r.len(), "as many left as right frames");

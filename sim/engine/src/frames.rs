@@ -1,20 +1,36 @@
-//! Camera frames written to disk in the EuRoC MAV dataset layout.
+//! Camera frames, IMU samples and ground truth written as EuRoC MAV datasets, one per robot.
 //!
 //! ```text
-//! frames/<robot>/<camera>/data/<t_ns>.png    the image as the robot received it
-//! frames/<robot>/<camera>/depth/<t_ns>.png   ground-truth depth, 16-bit, millimetres (0 = none)
-//! frames/<robot>/<camera>/data.csv           #timestamp [ns],filename
-//! frames/<robot>/<camera>/sensor.yaml        intrinsics, distortion, resolution, rate, T_BS
-//! frames/<robot>/<camera>.tum                world_from_optical at each frame (TUM)
+//! frames/<robot>/mav0/body.yaml                          the body frame (base_link)
+//! frames/<robot>/mav0/cam<k>/data/<t_ns>.png             the image as the robot received it
+//! frames/<robot>/mav0/cam<k>/data.csv                    #timestamp [ns],filename
+//! frames/<robot>/mav0/cam<k>/sensor.yaml                 intrinsics, distortion, resolution,
+//!                                                        rate, T_BS (body_from_optical)
+//! frames/<robot>/mav0/cam<k>/depth/<t_ns>.png            ground-truth depth, 16-bit mm (0 =
+//!                                                        none); not in EuRoC, loaders skip it
+//! frames/<robot>/mav0/cam<k>/world_from_optical.tum      the camera's true pose per frame
+//! frames/<robot>/mav0/imu<k>/data.csv                    #timestamp [ns],w_RS_S_x [rad s^-1],..
+//! frames/<robot>/mav0/imu<k>/sensor.yaml                 T_BS, rate, noise densities
+//! frames/<robot>/mav0/state_groundtruth_estimate0/data.csv   EuRoC's 17 columns: the body's
+//!                                                        true pose, velocity and IMU biases
+//! frames/<robot>/mav0/state_groundtruth_estimate0/sensor.yaml
 //! ```
-//! A stereo bench's cameras are `<camera>_left` and `<camera>_right`. `T_BS` is
-//! `body_from_optical` (row-major 4 x 4), the body being the robot's `base_link`.
+//!
+//! A robot's dumped cameras are numbered in the order of its robot file, a stereo bench's
+//! left camera before its right, so a bench alone is `cam0` (left) and `cam1` (right) as
+//! EuRoC and the stereo loaders that read it expect. Only cameras the dump wants are numbered.
+//! A robot's IMUs and ground truth are written when at least one of its cameras is dumped,
+//! within the same time window. Frames: the world is x east, y north, z up (REP-103; EuRoC's
+//! `R`); the body `B` is the robot's `base_link`; each sensor's `T_BS` is `body_from_sensor`.
 
 use crate::cameras::Shot;
 use crate::output::tum_line;
 use hetsim_core::files::FileError;
+use hetsim_msgs::{ImuSample, Pose};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
+
+mod euroc;
 
 /// Why a frame could not be written.
 #[derive(Debug, thiserror::Error)]
@@ -46,22 +62,49 @@ pub enum FrameError {
     },
 }
 
+/// An IMU of a robot, as the dataset describes it.
+#[derive(Clone, Debug)]
+pub struct ImuSpec {
+    /// `<robot>/<imu>`.
+    pub topic: String,
+    /// Samples per second (after rounding to whole ticks).
+    pub rate_hz: f64,
+    /// Angular-rate white noise per sample, rad/s.
+    pub gyro_sigma_radps: f64,
+    /// Acceleration white noise per sample, m/s^2.
+    pub accel_sigma_mps2: f64,
+    /// `body_from_sensor`.
+    pub body_from_sensor: Pose,
+    /// The run's true constant biases `(gyro rad/s, accel m/s^2)` in the sensor frame.
+    pub bias: ([f64; 3], [f64; 3]),
+}
+
+struct CamSlot {
+    robot: String,
+    folder: String,
+    csv: String,
+    tum: String,
+}
+
+struct ImuSlot {
+    spec: ImuSpec,
+    robot: String,
+    folder: String,
+    csv: String,
+}
+
 /// Which frames to write, and where.
 pub struct FrameDump {
     root: PathBuf,
     window_ns: Option<(u64, u64)>,
     cameras: Option<Vec<String>>,
-    csv: BTreeMap<String, String>,
-    tum: BTreeMap<String, String>,
-    rates: BTreeMap<String, f64>,
+    cams: BTreeMap<String, CamSlot>,
+    imus: BTreeMap<String, ImuSlot>,
     written: u64,
 }
 
-fn folder(topic: &str) -> (String, String) {
-    let mut parts = topic.splitn(2, '/');
-    let robot = parts.next().unwrap_or("robot").to_string();
-    let camera = parts.next().unwrap_or("camera").replace('/', "_");
-    (robot, camera)
+fn robot_of(topic: &str) -> &str {
+    topic.split('/').next().unwrap_or("robot")
 }
 
 impl FrameDump {
@@ -73,10 +116,48 @@ impl FrameDump {
             root: root.to_path_buf(),
             window_ns: window_s.map(|(a, b)| ((a * 1e9).round() as u64, (b * 1e9).round() as u64)),
             cameras,
-            csv: BTreeMap::new(),
-            tum: BTreeMap::new(),
-            rates: BTreeMap::new(),
+            cams: BTreeMap::new(),
+            imus: BTreeMap::new(),
             written: 0,
+        }
+    }
+
+    /// Numbers the wanted cameras per robot (`camera_topics` in robot-file order) and notes
+    /// the IMUs of robots with a wanted camera. Called once, before the first frame.
+    pub fn begin(&mut self, camera_topics: &[String], imus: &[ImuSpec]) {
+        let mut next: BTreeMap<String, usize> = BTreeMap::new();
+        let wanted: Vec<&String> = camera_topics.iter().filter(|t| self.wants(t)).collect();
+        for topic in wanted {
+            let robot = robot_of(topic).to_string();
+            let k = next.entry(robot.clone()).or_default();
+            self.cams.insert(
+                topic.clone(),
+                CamSlot {
+                    robot,
+                    folder: format!("cam{k}"),
+                    csv: "#timestamp [ns],filename\n".to_string(),
+                    tum: String::new(),
+                },
+            );
+            *k += 1;
+        }
+        let mut next: BTreeMap<String, usize> = BTreeMap::new();
+        for spec in imus {
+            let robot = robot_of(&spec.topic).to_string();
+            if !self.cams.values().any(|c| c.robot == robot) {
+                continue;
+            }
+            let k = next.entry(robot.clone()).or_default();
+            self.imus.insert(
+                spec.topic.clone(),
+                ImuSlot {
+                    spec: spec.clone(),
+                    robot,
+                    folder: format!("imu{k}"),
+                    csv: "#timestamp [ns],w_RS_S_x [rad s^-1],w_RS_S_y [rad s^-1],w_RS_S_z [rad s^-1],a_RS_S_x [m s^-2],a_RS_S_y [m s^-2],a_RS_S_z [m s^-2]\n".to_string(),
+                },
+            );
+            *k += 1;
         }
     }
 
@@ -99,11 +180,17 @@ impl FrameDump {
         self.written
     }
 
-    /// Writes one frame (image, depth, CSV and TUM lines; `sensor.yaml` the first time).
+    fn mav0(&self, robot: &str) -> PathBuf {
+        self.root.join(robot).join("mav0")
+    }
+
+    /// Writes one frame (image, depth, its CSV and TUM lines; `sensor.yaml` the first time).
     pub fn write(&mut self, shot: &Shot) -> Result<(), FrameError> {
-        let rate_hz = shot.rate_hz;
-        let (robot, camera) = folder(&shot.topic);
-        let dir = self.root.join(&robot).join(&camera);
+        let Some(slot) = self.cams.get(&shot.topic) else {
+            return Ok(());
+        };
+        let dir = self.mav0(&slot.robot).join(&slot.folder);
+        let first = slot.tum.is_empty();
         let ns = shot.image.stamp_ns;
         let (width, height) = (shot.image.width, shot.image.height);
         let size = |what, bytes| FrameError::Size {
@@ -117,17 +204,13 @@ impl FrameDump {
             let path = path.to_path_buf();
             move |source| FrameError::Encode { path, source }
         };
-        if !self.csv.contains_key(&shot.topic) {
+        if first {
             for sub in ["data", "depth"] {
                 let d = dir.join(sub);
                 std::fs::create_dir_all(&d).map_err(FileError::at(&d))?;
             }
-            let yaml = sensor_yaml(shot, rate_hz);
             let path = dir.join("sensor.yaml");
-            std::fs::write(&path, yaml).map_err(FileError::at(&path))?;
-            self.csv
-                .insert(shot.topic.clone(), "#timestamp [ns],filename\n".to_string());
-            self.rates.insert(shot.topic.clone(), rate_hz);
+            std::fs::write(&path, euroc::camera_yaml(shot)).map_err(FileError::at(&path))?;
         }
         let name = format!("{ns}.png");
         let img = image::RgbImage::from_raw(width, height, shot.image.rgb.clone())
@@ -149,57 +232,76 @@ impl FrameDump {
                 .save_with_format(&path, image::ImageFormat::Png)
                 .map_err(encode(&path))?;
         }
-        self.csv
-            .get_mut(&shot.topic)
-            .expect("created above")
-            .push_str(&format!("{ns},{name}\n"));
-        self.tum
-            .entry(shot.topic.clone())
-            .or_default()
-            .push_str(&tum_line(ns, &shot.world_from_optical));
+        let slot = self.cams.get_mut(&shot.topic).expect("looked up above");
+        slot.csv.push_str(&format!("{ns},{name}\n"));
+        slot.tum.push_str(&tum_line(ns, &shot.world_from_optical));
         self.written += 1;
         Ok(())
     }
 
-    /// Writes each camera's `data.csv` and TUM file.
-    pub fn finish(&self) -> Result<(), FrameError> {
-        for (topic, csv) in &self.csv {
-            let (robot, camera) = folder(topic);
-            let path = self.root.join(&robot).join(&camera).join("data.csv");
-            std::fs::write(&path, csv).map_err(FileError::at(&path))?;
-            let tum = self.root.join(&robot).join(format!("{camera}.tum"));
-            std::fs::write(&tum, &self.tum[topic]).map_err(FileError::at(&tum))?;
+    /// Notes one IMU sample of a robot whose cameras are dumped (inside the window).
+    pub fn imu(&mut self, topic: &str, sample: &ImuSample) {
+        if !self.in_window(sample.stamp_ns) {
+            return;
+        }
+        if let Some(slot) = self.imus.get_mut(topic) {
+            let [wx, wy, wz] = sample.angular_rate_radps;
+            let [ax, ay, az] = sample.accel_mps2;
+            slot.csv.push_str(&format!(
+                "{},{wx},{wy},{wz},{ax},{ay},{az}\n",
+                sample.stamp_ns
+            ));
+        }
+    }
+
+    /// Writes each camera's `data.csv` and poses, each IMU's `data.csv` and `sensor.yaml`,
+    /// and for every robot with a dumped camera its `body.yaml` and ground truth
+    /// (`truth`: each robot's name and `world_from_body` samples in time order).
+    pub fn finish(&self, truth: &[(&str, &[(u64, Pose)])]) -> Result<(), FrameError> {
+        let write = |path: PathBuf, text: &str| -> Result<(), FrameError> {
+            if let Some(dir) = path.parent() {
+                std::fs::create_dir_all(dir).map_err(FileError::at(dir))?;
+            }
+            std::fs::write(&path, text).map_err(FileError::at(&path))?;
+            Ok(())
+        };
+        let mut robots: Vec<&str> = Vec::new();
+        for slot in self.cams.values().filter(|s| !s.tum.is_empty()) {
+            let dir = self.mav0(&slot.robot).join(&slot.folder);
+            write(dir.join("data.csv"), &slot.csv)?;
+            write(dir.join("world_from_optical.tum"), &slot.tum)?;
+            if !robots.contains(&slot.robot.as_str()) {
+                robots.push(&slot.robot);
+            }
+        }
+        for slot in self.imus.values() {
+            if !robots.contains(&slot.robot.as_str()) {
+                continue;
+            }
+            let dir = self.mav0(&slot.robot).join(&slot.folder);
+            write(dir.join("data.csv"), &slot.csv)?;
+            write(dir.join("sensor.yaml"), &euroc::imu_yaml(&slot.spec))?;
+        }
+        for robot in robots {
+            let mav0 = self.mav0(robot);
+            write(mav0.join("body.yaml"), &euroc::body_yaml(robot))?;
+            let samples = truth
+                .iter()
+                .find(|(name, _)| *name == robot)
+                .map_or(&[][..], |(_, s)| *s);
+            // The biases of the robot's first IMU (EuRoC's b_w, b_a are imu0's), else none.
+            let bias = self
+                .imus
+                .values()
+                .find(|s| s.robot == robot && s.folder == "imu0")
+                .map_or(([0.0; 3], [0.0; 3]), |s| s.spec.bias);
+            let dir = mav0.join("state_groundtruth_estimate0");
+            write(
+                dir.join("data.csv"),
+                &euroc::groundtruth_csv(samples, self.window_ns, bias),
+            )?;
+            write(dir.join("sensor.yaml"), euroc::GROUNDTRUTH_YAML)?;
         }
         Ok(())
     }
-}
-
-fn sensor_yaml(shot: &Shot, rate_hz: f64) -> String {
-    let k = &shot.intrinsics;
-    let t = shot.body_from_optical.to_homogeneous();
-    let rows: Vec<String> = (0..4)
-        .map(|r| {
-            (0..4)
-                .map(|c| format!("{:.9}", t[(r, c)]))
-                .collect::<Vec<_>>()
-                .join(", ")
-        })
-        .collect();
-    let (model, intrinsics) = if k.alpha_u > 0.0 {
-        (
-            "pinhole",
-            format!("[{}, {}, {}, {}]", k.alpha_u, k.alpha_v, k.u0, k.v0),
-        )
-    } else {
-        ("equirectangular", "[]".to_string())
-    };
-    format!(
-        "# hetsim camera {topic}; EuRoC sensor.yaml layout\nsensor_type: camera\ncomment: {topic}\nT_BS:\n  cols: 4\n  rows: 4\n  data: [{}]\nrate_hz: {rate_hz}\nresolution: [{}, {}]\ncamera_model: {model}\nintrinsics: {intrinsics}\ndistortion_model: radial-tangential\ndistortion_coefficients: [{}, {}, 0.0, 0.0]\n",
-        rows.join(",\n         "),
-        k.width,
-        k.height,
-        shot.distortion[0],
-        shot.distortion[1],
-        topic = shot.topic
-    )
 }

@@ -2,7 +2,7 @@
 
 use crate::cameras::Cameras;
 use crate::comms::Comms;
-use crate::frames::FrameDump;
+use crate::frames::{FrameDump, ImuSpec};
 use crate::output::{RobotOutcome, RunOutput};
 use crate::record::Recorder;
 use hetsim_core::{PayloadHasher, RunDigest, Streams};
@@ -156,6 +156,22 @@ fn run_on_worker(
         Some(o) => Cameras::new(scenario, &streams, o)?,
         None => None,
     };
+    if let Some(d) = dump.as_deref_mut() {
+        let imus: Vec<ImuSpec> = sensors
+            .imus()
+            .into_iter()
+            .map(|m| ImuSpec {
+                topic: m.topic,
+                rate_hz: m.rate_hz,
+                gyro_sigma_radps: m.gyro_sigma_radps,
+                accel_sigma_mps2: m.accel_sigma_mps2,
+                body_from_sensor: m.body_from_sensor,
+                bias: (m.gyro_bias, m.accel_bias),
+            })
+            .collect();
+        let topics = cameras.as_ref().map(|c| c.topics()).unwrap_or_default();
+        d.begin(&topics, &imus);
+    }
     let mut comms = Comms::new(scenario.file.comms.clone(), clock, names.clone(), streams);
     let n = stacks.len();
     let total = clock.ticks_in(scenario.duration_secs);
@@ -276,6 +292,9 @@ fn run_on_worker(
         let after = tick + 1;
         sample_truth(&mut post, &mut truth, &physics, after);
         for sample in sensors.sample(&physics, tick) {
+            if let (Some(d), SensorMsg::Imu(m)) = (dump.as_deref_mut(), &sample.msg) {
+                d.imu(&sample.topic, m);
+            }
             let mount = topics.mounts.get(&sample.topic);
             post.deliver(sample.robot, &sample.topic, sample.msg, mount);
         }
@@ -331,7 +350,12 @@ fn run_on_worker(
     }
     progress(total, total);
     if let Some(d) = dump.as_deref() {
-        d.finish()?;
+        let samples: Vec<(&str, &[(u64, Pose)])> = names
+            .iter()
+            .map(String::as_str)
+            .zip(truth.iter().map(Vec::as_slice))
+            .collect();
+        d.finish(&samples)?;
     }
     let robots = scenario
         .robots

@@ -31,4 +31,4 @@
 pub mod relative;
 mod suite;
 
-pub use suite::{Sample, SensorSuite};
+pub use suite::{ImuTruth, Sample, SensorSuite};

@@ -56,6 +56,25 @@ struct Instance {
     state: State,
 }
 
+/// An IMU as the simulator knows it, noise model and true biases: see [`SensorSuite::imus`].
+#[derive(Clone, Debug)]
+pub struct ImuTruth {
+    /// `<robot>/<imu>`.
+    pub topic: String,
+    /// Samples per second, after rounding to whole ticks.
+    pub rate_hz: f64,
+    /// Angular-rate white noise per sample, rad/s.
+    pub gyro_sigma_radps: f64,
+    /// Acceleration white noise per sample, m/s^2.
+    pub accel_sigma_mps2: f64,
+    /// `body_from_sensor`.
+    pub body_from_sensor: Pose,
+    /// The run's constant gyro bias, rad/s, sensor frame.
+    pub gyro_bias: [f64; 3],
+    /// The run's constant accelerometer bias, m/s^2, sensor frame.
+    pub accel_bias: [f64; 3],
+}
+
 /// The non-visual sensors of all robots, in robot order, then file order.
 pub struct SensorSuite {
     sensors: Vec<Instance>,
@@ -163,6 +182,39 @@ impl SensorSuite {
     /// for the emulated image matcher.
     pub fn add_keyframe(&mut self, robot: usize, stamp_ns: u64, world_from_body: Pose) {
         self.keyframes.push((robot, stamp_ns, world_from_body));
+    }
+
+    /// Every IMU, in robot then file order: `(topic, rate after rounding to whole ticks,
+    /// gyro and accel white-noise sigma, body_from_sensor, the run's true constant gyro and
+    /// accel biases)`. Truth, for the datasets the simulator writes (EuRoC's ground truth
+    /// carries the biases); robot software never sees it.
+    pub fn imus(&self) -> Vec<ImuTruth> {
+        self.sensors
+            .iter()
+            .filter_map(|s| match (&s.spec, &s.state) {
+                (
+                    Sensor::Imu {
+                        gyro_sigma_radps,
+                        accel_sigma_mps2,
+                        ..
+                    },
+                    State::Imu {
+                        gyro_bias,
+                        accel_bias,
+                        ..
+                    },
+                ) => Some(ImuTruth {
+                    topic: s.topic.clone(),
+                    rate_hz: 1.0 / self.clock.time_secs(s.period),
+                    gyro_sigma_radps: *gyro_sigma_radps,
+                    accel_sigma_mps2: *accel_sigma_mps2,
+                    body_from_sensor: s.body_from_sensor,
+                    gyro_bias: *gyro_bias,
+                    accel_bias: *accel_bias,
+                }),
+                _ => None,
+            })
+            .collect()
     }
 
     /// Number of sensors.
