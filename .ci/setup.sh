@@ -1,7 +1,9 @@
 #!/usr/bin/env bash
 # Installs what hetsim needs beyond a Rust toolchain, and only what is missing: Mesa's CPU
 # rasterizers, lavapipe (Vulkan) and llvmpipe (GL through EGL), which render the cameras on a
-# machine without a GPU. Safe to run again: it does nothing when they are there.
+# machine without a GPU; and Slurm with munge (slurm-wlm), which the sweep's end-to-end test
+# starts as a one-node cluster (tests/slurm/cluster.sh). Safe to run again: it does nothing
+# when they are there.
 #
 # Used by the README's two commands and by .ci/run. On a machine where it cannot install
 # (not root, or no apt-get), it says what to install and exits non-zero.
@@ -18,12 +20,13 @@ icds() { ls /usr/share/vulkan/icd.d /etc/vulkan/icd.d 2>/dev/null || true; }
 have_vulkan() { libs | grep 'libvulkan\.so\.1' >/dev/null && icds | grep '\.json$' >/dev/null; }
 have_lavapipe() { icds | grep '^lvp_icd' >/dev/null; }
 have_egl() { libs | grep 'libEGL_mesa\.so' >/dev/null; }
+have_slurm() { command -v slurmctld >/dev/null && command -v slurmd >/dev/null && command -v munged >/dev/null; }
 
-if have_vulkan && have_lavapipe && have_egl; then
+if have_vulkan && have_lavapipe && have_egl && have_slurm; then
     exit 0
 fi
 
-PACKAGES="mesa-vulkan-drivers libvulkan1 libegl1 libegl-mesa0 libgles2"
+PACKAGES="mesa-vulkan-drivers libvulkan1 libegl1 libegl-mesa0 libgles2 slurm-wlm munge"
 if command -v apt-get >/dev/null 2>&1 && [ "$(id -u)" = 0 ]; then
     echo "setup: installing Mesa's software rasterizers ($PACKAGES)" >&2
     apt-get update -qq || true
@@ -31,10 +34,10 @@ if command -v apt-get >/dev/null 2>&1 && [ "$(id -u)" = 0 ]; then
         echo "setup: apt-get install $PACKAGES failed (see apt's message above)" >&2
         exit 1
     fi
-    if have_vulkan && have_egl; then
+    if have_vulkan && have_egl && have_slurm; then
         exit 0
     fi
-    echo "setup: installed $PACKAGES but still found no Vulkan ICD or libEGL_mesa" >&2
+    echo "setup: installed $PACKAGES but still found no Vulkan ICD, libEGL_mesa or Slurm" >&2
     exit 1
 fi
 

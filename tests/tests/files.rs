@@ -27,6 +27,27 @@ fn every_scenario_and_robot_file_loads() {
     for m in models {
         load_robot_model(&m, 1e-3).unwrap_or_else(|e| panic!("{e}"));
     }
+    // The shipped sweeps: each loads, and every combination of its axes makes a valid
+    // scenario (load_sweep checks the first seed of each); the village and lab examples are
+    // whole-run sweeps.
+    let sweeps = files_in("scenarios/sweeps");
+    let mut kinds = Vec::new();
+    for s in &sweeps {
+        let sweep = hetsim_eval::sweep::load_sweep(s).unwrap_or_else(|e| panic!("{e}"));
+        kinds.push((sweep.file.name.clone(), sweep.file.kind));
+    }
+    use hetsim_eval::sweep::SweepKind::{Plan, Run};
+    for (name, kind) in [
+        ("table1", Plan),
+        ("table2", Plan),
+        ("village-noise", Run),
+        ("lab-compass", Run),
+    ] {
+        assert!(
+            kinds.contains(&(name.to_string(), kind)),
+            "{name}: {kinds:?}"
+        );
+    }
 }
 
 #[test]

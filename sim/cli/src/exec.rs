@@ -24,6 +24,8 @@ pub struct Job<'a> {
     pub dump: Option<DumpSpec>,
     /// SLAM stacks open loop.
     pub open_loop: bool,
+    /// No progress bar (runs of a sweep, which shows its own).
+    pub quiet: bool,
 }
 
 /// `hetsim frames`: renders and writes the frames of a time window.
@@ -69,6 +71,7 @@ pub fn frames(
             render: Some(render),
             dump: Some((Some((from, to)), list)),
             open_loop: false,
+            quiet: false,
         },
     )
 }
@@ -76,7 +79,19 @@ pub fn frames(
 /// Runs a loaded scenario with the robot software its robots declare, evaluates it and
 /// writes its results (and frames, and recording). Prints `results: DIR` and `digest: HEX`.
 pub fn execute(loaded: &Scenario, job: &Job<'_>) -> Result<()> {
-    let bar = run_progress_bar(&loaded.file.name);
+    let files = run_scenario(loaded, job)?;
+    println!("results: {}", files.dir.display());
+    println!("digest: {}", files.digest);
+    Ok(())
+}
+
+/// What [`execute`] does, printing nothing: the results folder and digest.
+pub fn run_scenario(loaded: &Scenario, job: &Job<'_>) -> Result<hetsim_eval::RunFiles> {
+    let bar = if job.quiet {
+        ProgressBar::hidden()
+    } else {
+        run_progress_bar(&loaded.file.name)
+    };
     let start = crate::bench::wall_clock();
     let clock = loaded.clock;
     let mut recorder = job.record.map(Recorder::create).transpose()?;
@@ -90,7 +105,11 @@ pub fn execute(loaded: &Scenario, job: &Job<'_>) -> Result<()> {
             .filter(|p| !p.as_os_str().is_empty())
             .unwrap_or(Path::new("results/runs")),
     )
-    .join(format!(".frames-{}", std::process::id()));
+    .join(format!(".frames-{}-{}", std::process::id(), {
+        // Several runs of one process (a sweep's) each stage their own frames.
+        static RUNS: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+        RUNS.fetch_add(1, std::sync::atomic::Ordering::Relaxed)
+    }));
     let mut dumper = job
         .dump
         .clone()
@@ -156,9 +175,7 @@ pub fn execute(loaded: &Scenario, job: &Job<'_>) -> Result<()> {
             return Err(e);
         }
     };
-    println!("results: {}", files.dir.display());
-    println!("digest: {}", files.digest);
-    Ok(())
+    Ok(files)
 }
 
 fn rayon_threads() -> usize {

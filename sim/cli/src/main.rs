@@ -6,6 +6,7 @@
 
 mod bench;
 mod exec;
+mod slurm;
 mod study;
 
 use anyhow::Result;
@@ -115,14 +116,16 @@ enum Cmd {
         /// Scenario files or robot files (robots/models/*.toml).
         files: Vec<PathBuf>,
     },
-    /// Run a Monte Carlo sweep of coverage planning (grid level, no rendering), or
-    /// `hetsim sweep merge SWEEP.toml SHARD_DIR... --out DIR` to join shards.
+    /// Run a Monte Carlo sweep: of whole runs of any scenario (`kind = "run"`) or of coverage
+    /// planning (`kind = "plan"`); `--slurm` writes (and with `--submit` submits) it as a
+    /// Slurm job array with a dependent merge job; `hetsim sweep merge SWEEP.toml
+    /// SHARD_DIR... --out DIR` joins shards.
     Sweep {
         /// The sweep file, or `merge`.
         target: String,
         /// With `merge`: the sweep file, then the shard folders.
         more: Vec<PathBuf>,
-        /// Parallel runs (default: all cores).
+        /// Parallel runs (default: all cores); with --slurm, CPUs per array task (default 1).
         #[arg(long)]
         jobs: Option<usize>,
         /// Output folder (default: results/runs/sweep-<name>).
@@ -131,6 +134,19 @@ enum Cmd {
         /// Run only shard K of N (1-based), e.g. `--shard 2/4`.
         #[arg(long)]
         shard: Option<String>,
+        /// Write OUT/slurm/{array.sbatch, merge.sbatch, submit.sh} instead of running.
+        #[arg(long)]
+        slurm: bool,
+        /// With --slurm: submit the array and the merge job (sbatch must be on PATH).
+        #[arg(long)]
+        submit: bool,
+        /// With --slurm: array tasks, one shard each (default: the runs, at most 32).
+        #[arg(long)]
+        shards: Option<usize>,
+        /// With --slurm: an extra #SBATCH option for both jobs, e.g. --sbatch=--partition=long
+        /// (repeatable).
+        #[arg(long, allow_hyphen_values = true)]
+        sbatch: Vec<String>,
     },
     /// Write results/coverage-tables.md and its figures (`hetsim report coverage`: runs or
     /// resumes the table1 and table2 sweeps first), or a village run's results page
@@ -238,6 +254,7 @@ fn real_main() -> Result<()> {
                     render,
                     dump: dump_frames.then_some((None, None)),
                     open_loop,
+                    quiet: false,
                 },
             )?;
         }
@@ -308,7 +325,21 @@ fn real_main() -> Result<()> {
             jobs,
             out,
             shard,
-        } => study::sweep(target, more, jobs, out, shard)?,
+            slurm,
+            submit,
+            shards,
+            sbatch,
+        } => study::sweep(study::SweepArgs {
+            target,
+            more,
+            jobs,
+            out,
+            shard,
+            slurm,
+            submit,
+            shards,
+            sbatch,
+        })?,
         Cmd::Regress { update, scenarios } => study::regress(update, scenarios)?,
         Cmd::Bench {
             scenarios,

@@ -85,36 +85,79 @@ pub fn regress(update: bool, scenarios: Vec<String>) -> Result<()> {
     Ok(())
 }
 
-/// `hetsim sweep` and `hetsim sweep merge`.
-pub fn sweep(
-    target: String,
-    more: Vec<PathBuf>,
-    jobs: Option<usize>,
-    out: Option<PathBuf>,
-    shard: Option<String>,
-) -> Result<()> {
-    let merging = target == "merge";
+/// What `hetsim sweep` was asked.
+pub struct SweepArgs {
+    /// The sweep file, or `merge`.
+    pub target: String,
+    /// With `merge`: the sweep file, then the shard folders.
+    pub more: Vec<PathBuf>,
+    /// Parallel runs (with `--slurm`: CPUs per array task).
+    pub jobs: Option<usize>,
+    /// Output folder.
+    pub out: Option<PathBuf>,
+    /// `K/N`.
+    pub shard: Option<String>,
+    /// Write Slurm scripts instead of running.
+    pub slurm: bool,
+    /// Submit them.
+    pub submit: bool,
+    /// Array tasks.
+    pub shards: Option<usize>,
+    /// Extra `#SBATCH` options.
+    pub sbatch: Vec<String>,
+}
+
+/// `hetsim sweep`, `hetsim sweep --slurm` and `hetsim sweep merge`.
+pub fn sweep(args: SweepArgs) -> Result<()> {
+    let merging = args.target == "merge";
     let (file, shards) = if merging {
-        let (f, rest) = more
+        let (f, rest) = args
+            .more
             .split_first()
             .context("usage: hetsim sweep merge SWEEP.toml SHARD_DIR... --out DIR")?;
         (f.clone(), rest.to_vec())
     } else {
         anyhow::ensure!(
-            more.is_empty(),
-            "unexpected arguments after the sweep file: {more:?}"
+            args.more.is_empty(),
+            "unexpected arguments after the sweep file: {:?}",
+            args.more
         );
-        (PathBuf::from(&target), Vec::new())
+        (PathBuf::from(&args.target), Vec::new())
     };
+    anyhow::ensure!(
+        args.slurm || (!args.submit && args.shards.is_none() && args.sbatch.is_empty()),
+        "--submit, --shards and --sbatch go with --slurm"
+    );
+    anyhow::ensure!(
+        !(args.slurm && (merging || args.shard.is_some())),
+        "--slurm writes the whole sweep's job array: give it the sweep file, without --shard"
+    );
     let loaded = sweep::load_sweep(&file)?;
-    let out = out.unwrap_or_else(|| {
+    let out = args.out.unwrap_or_else(|| {
         PathBuf::from("results/runs").join(format!("sweep-{}", loaded.file.name))
     });
+    if args.slurm {
+        let options = crate::slurm::SlurmOptions {
+            shards: args.shards.unwrap_or(loaded.runs.len().min(32)),
+            cpus: args.jobs.unwrap_or(1),
+            extra: args.sbatch,
+        };
+        let scripts = crate::slurm::write_scripts(&loaded, &out, &options)?;
+        println!("array: {}", scripts.array.display());
+        println!("merge: {}", scripts.merge.display());
+        println!("submit: {}", scripts.submit.display());
+        if args.submit {
+            let (array, merge) = crate::slurm::submit(&scripts)?;
+            println!("submitted: array job {array}, merge job {merge} (afterok:{array})");
+        }
+        println!("results: {}", out.display());
+        return Ok(());
+    }
     let summary = if merging {
         anyhow::ensure!(!shards.is_empty(), "name the shard folders to merge");
         sweep::merge(&loaded, &out, &shards)?
     } else {
-        let shard = match shard {
+        let shard = match args.shard {
             None => (1, 1),
             Some(s) => {
                 let parsed = s
@@ -126,12 +169,18 @@ pub fn sweep(
                 }
             }
         };
-        let jobs = default_jobs(jobs);
+        let jobs = default_jobs(args.jobs);
         let bar = progress_bar(&loaded.file.name);
-        let summary = sweep::run_sweep(&loaded, &out, jobs, shard, &|done, total| {
+        let progress = |done: usize, total: usize| {
             bar.set_length(total as u64);
             bar.set_position(done as u64);
-        })?;
+        };
+        let summary = match loaded.file.kind {
+            sweep::SweepKind::Plan => sweep::run_sweep(&loaded, &out, jobs, shard, &progress)?,
+            sweep::SweepKind::Run => {
+                sweep::run_sweep_with(&loaded, &out, jobs, shard, &progress, &whole_run)?
+            }
+        };
         bar.finish_and_clear();
         summary
     };
@@ -142,6 +191,36 @@ pub fn sweep(
     println!("finished: {} of {} runs", summary.finished, summary.total);
     println!("results: {}", out.display());
     Ok(())
+}
+
+/// One run of a whole-run sweep: the scenario run, evaluated and written into `dir` (kept
+/// when a killed sweep had finished it), and its metrics read back from there.
+fn whole_run(
+    sweep: &sweep::Sweep,
+    run: &sweep::SweepRun,
+    dir: &Path,
+) -> Result<sweep::RunResult, sweep::SweepError> {
+    if !dir.join("manifest.json").is_file() {
+        let loaded = sweep.scenario(run)?;
+        let render = sweep
+            .file
+            .render
+            .unwrap_or(true)
+            .then(RenderOptions::default);
+        crate::exec::run_scenario(
+            &loaded,
+            &Job {
+                out: Some(dir),
+                record: None,
+                render,
+                dump: None,
+                open_loop: false,
+                quiet: true,
+            },
+        )
+        .map_err(|e| sweep.run_error(run, format!("{e:#}")))?;
+    }
+    sweep::metrics_of_run(sweep, run, dir)
 }
 
 /// `hetsim localize`: mapping runs, cross-validation, particle filter paths.
@@ -192,6 +271,7 @@ pub fn localize(
                     render: Some(render.clone()),
                     dump: None,
                     open_loop: false,
+                    quiet: false,
                 },
             )?;
         }

@@ -12,8 +12,10 @@ use plotters::prelude::*;
 use plotters::style::FontStyle;
 use std::sync::Once;
 
+mod boxes;
 mod coverage;
 mod localization;
+pub use boxes::{boxes_png, BoxPanel};
 pub use coverage::{coverage_map_png, stacked_boxes_png, CoverageMap, StackedBox};
 pub use localization::localization_png;
 

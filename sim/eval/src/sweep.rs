@@ -1,23 +1,41 @@
-//! Monte Carlo sweeps over scenario parameters, resumable and shardable.
+//! Monte Carlo sweeps over scenario and robot-file parameters, resumable and shardable.
 //!
-//! A sweep file names a base scenario, parameter axes (dotted paths to any scenario field)
-//! and a number of seeds. Runs are the product of the axes (in key order, values as listed)
-//! and the seeds; run `i` always means the same combination. Each finished run writes one
-//! row file `rows/<i>.csv` atomically, so an interrupted sweep resumes without redoing
-//! finished runs and never leaves a half-written row; `runs.csv`, `summary.csv` and
-//! `summary.md` (and `boxplot.png` when the sweep varies `coverage.children`) are rebuilt
-//! from the row files in run order, so they do not depend on the
-//! number of jobs, on scheduling, or on sharding (`merge` joins shards into the same files).
+//! A sweep file names a base scenario, parameter axes and a number of seeds. Runs are the
+//! product of the axes (in key order, values as listed) and the seeds; run `i` always means
+//! the same combination. Two kinds:
+//!
+//! - `kind = "plan"` (the default): grid-level coverage planning of the run's scenario, as
+//!   in seed 002's simulations; the metrics are the planner's ([`METRICS`]).
+//! - `kind = "run"`: whole lockstep runs of any scenario, rendered or not; each run's
+//!   results folder is kept under `runs/<i>/`, and the metrics are dotted paths into its
+//!   `metrics.json` (`estimates.vo/ressac.ate_m`, `team.coverage`), named by the sweep
+//!   file. Running a scenario needs the engine, so the caller supplies the runner
+//!   ([`run_sweep_with`]); the `hetsim` binary does.
+//!
+//! An axis is a dotted path to a scenario field (`coverage.children`), to a field of one
+//! robot's file (`robots.<robot name>.<field>`, e.g. `robots.ressac.sensors.stereo.pixel_noise_sigma`,
+//! written into that robot's `overrides`), or to a field of every robot of a model
+//! (`models.<model>.<field>`, e.g. `models.ctbot.sensors.compass.sigma_deg`).
+//!
+//! Each finished run writes one row file `rows/<i>.csv` atomically, so an interrupted sweep
+//! resumes without redoing finished runs and never leaves a half-written row; `runs.csv`,
+//! `summary.csv`, `summary.md` and the box plots are rebuilt from the row files in run
+//! order, so they depend neither on the number of jobs, nor on scheduling, nor on sharding
+//! (`merge` joins shards into the same files).
 
-use crate::coverage::{plan_scenario, CoverageMetrics};
+use crate::coverage::CoverageMetrics;
 use hetsim_core::files::{write_atomic, FileError};
 use hetsim_scene::{load_scenario_text, LoadOptions};
 use serde::Deserialize;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicUsize, Ordering};
 
+mod axes;
+mod runs;
 mod summary;
+pub use runs::{
+    in_shard, merge, metrics_of_run, plan_runner, run_sweep, run_sweep_with, RunResult, Runner,
+};
 pub use summary::{summarize, Stat, SummaryCell, SweepSummary};
 
 /// Why a sweep could not be loaded, run or summarized.
@@ -48,14 +66,14 @@ pub enum SweepError {
         /// What is allowed.
         allowed: String,
     },
-    /// One run's scenario is refused or its plan failed.
+    /// One run's scenario is refused, or the run failed.
     #[error("{}: run {index} ({values}): {message}", path.display())]
     Run {
         /// The sweep file.
         path: PathBuf,
         /// The run.
         index: usize,
-        /// Its axis values.
+        /// Its axis values and seed.
         values: String,
         /// What went wrong.
         message: String,
@@ -69,6 +87,18 @@ pub enum SweepError {
         row: usize,
         /// What is wrong.
         message: String,
+    },
+    /// Shards to merge do not hold every run of the sweep.
+    #[error("{}: {missing} of {total} runs have no row in the shards merged (first missing: run {first}); a shard failed or was left out", path.display())]
+    Incomplete {
+        /// The sweep file.
+        path: PathBuf,
+        /// Runs without a row.
+        missing: usize,
+        /// Runs in the sweep.
+        total: usize,
+        /// The first run without a row.
+        first: usize,
     },
     /// The worker threads could not be started.
     #[error("starting {jobs} worker threads: {message}")]
@@ -84,6 +114,17 @@ fn read(path: &Path) -> Result<Vec<u8>, SweepError> {
     Ok(std::fs::read(path).map_err(FileError::at(path))?)
 }
 
+/// What one run of a sweep is.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum SweepKind {
+    /// Grid-level coverage planning (no engine, no rendering), as in seed 002's simulations.
+    #[default]
+    Plan,
+    /// A whole lockstep run of the scenario, evaluated into its `metrics.json`.
+    Run,
+}
+
 /// A sweep file.
 #[derive(Clone, Debug, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -94,12 +135,24 @@ pub struct SweepFile {
     pub name: String,
     /// Base scenario, relative to the sweep file's folder.
     pub base: String,
+    /// `plan` (default) or `run`.
+    #[serde(default)]
+    pub kind: SweepKind,
     /// Seeds per combination: `first_seed .. first_seed + seeds`.
     pub seeds: u64,
     /// First seed.
     #[serde(default)]
     pub first_seed: u64,
-    /// Dotted scenario field -> values.
+    /// `run` only: dotted paths into each run's `metrics.json`, one column each.
+    #[serde(default)]
+    pub metrics: Vec<String>,
+    /// `run` only: sim seconds of each run (default: the scenario's `duration_secs`).
+    #[serde(default)]
+    pub duration_secs: Option<f64>,
+    /// `run` only: render the cameras (default true).
+    #[serde(default)]
+    pub render: Option<bool>,
+    /// Axis (a dotted path, see the module doc) -> values.
     pub axes: BTreeMap<String, Vec<toml::Value>>,
 }
 
@@ -117,7 +170,8 @@ pub struct SweepRun {
 /// A loaded sweep.
 #[derive(Clone, Debug)]
 pub struct Sweep {
-    /// The sweep file.
+    /// The sweep file, as an absolute path (so a run's manifest names the same base scenario
+    /// wherever the sweep was started from).
     pub path: PathBuf,
     /// What it says.
     pub file: SweepFile,
@@ -129,7 +183,7 @@ pub struct Sweep {
     pub runs: Vec<SweepRun>,
 }
 
-/// Metric columns of `runs.csv`, in order.
+/// Metric columns of a planning sweep's `runs.csv`, in order.
 pub const METRICS: [&str; 10] = [
     "vertices",
     "parent_vertices",
@@ -143,8 +197,8 @@ pub const METRICS: [&str; 10] = [
     "robot_steps",
 ];
 
-fn metric_values(m: &CoverageMetrics) -> [f64; 10] {
-    [
+fn metric_values(m: &CoverageMetrics) -> Vec<f64> {
+    vec![
         m.vertices as f64,
         m.parent_vertices as f64,
         m.following as f64,
@@ -165,9 +219,13 @@ fn value_text(v: &toml::Value) -> String {
     }
 }
 
-/// Reads a sweep file and expands its runs.
+/// Reads a sweep file, checks it and expands its runs; every combination's scenario is
+/// loaded and validated once (first seed) before anything runs.
 pub fn load_sweep(path: &Path) -> Result<Sweep, SweepError> {
-    let text = String::from_utf8_lossy(&read(path)?).into_owned();
+    let bytes = read(path)?;
+    let path = std::fs::canonicalize(path).map_err(FileError::at(path))?;
+    let path = path.as_path();
+    let text = String::from_utf8_lossy(&bytes).into_owned();
     let file: SweepFile = toml::from_str(&text).map_err(|e| SweepError::Parse {
         path: path.to_path_buf(),
         line: e.span().map(|s| text[..s.start].matches('\n').count() + 1),
@@ -189,6 +247,14 @@ pub fn load_sweep(path: &Path) -> Result<Sweep, SweepError> {
     if file.seeds == 0 {
         return Err(field("seeds", "0".into(), "at least 1 seed"));
     }
+    if file.seeds > 100_000 || file.first_seed.checked_add(file.seeds).is_none() {
+        return Err(field(
+            "seeds",
+            file.seeds.to_string(),
+            "at most 100000 seeds, first_seed + seeds below 2^64",
+        ));
+    }
+    check_kind_fields(&file, &field)?;
     for (k, v) in &file.axes {
         if v.is_empty() {
             return Err(field(
@@ -197,6 +263,22 @@ pub fn load_sweep(path: &Path) -> Result<Sweep, SweepError> {
                 "at least one value",
             ));
         }
+        if k.split('.').any(str::is_empty) {
+            return Err(field(
+                &format!("axes.\"{k}\""),
+                format!("{:?}", k),
+                "a dotted path of non-empty names (scenario field, robots.<robot>.<field> or models.<model>.<field>)",
+            ));
+        }
+    }
+    let combos: usize = file.axes.values().map(Vec::len).product();
+    let total = combos.saturating_mul(file.seeds as usize);
+    if total > 1_000_000 {
+        return Err(field(
+            "axes",
+            format!("{combos} combinations x {} seeds", file.seeds),
+            "at most 1000000 runs in one sweep",
+        ));
     }
     let base = path.parent().unwrap_or(Path::new(".")).join(&file.base);
     let base_text = std::fs::read_to_string(&base).map_err(|e| {
@@ -206,9 +288,8 @@ pub fn load_sweep(path: &Path) -> Result<Sweep, SweepError> {
             &format!("a readable scenario file ({}: {e})", base.display()),
         )
     })?;
-    let axes: Vec<&Vec<toml::Value>> = file.axes.values().collect();
     let mut combos: Vec<Vec<toml::Value>> = vec![Vec::new()];
-    for values in axes {
+    for values in file.axes.values() {
         combos = combos
             .into_iter()
             .flat_map(|c| {
@@ -218,7 +299,7 @@ pub fn load_sweep(path: &Path) -> Result<Sweep, SweepError> {
             })
             .collect();
     }
-    let mut runs = Vec::new();
+    let mut runs = Vec::with_capacity(total);
     for values in combos {
         for seed in file.first_seed..file.first_seed + file.seeds {
             runs.push(SweepRun {
@@ -246,24 +327,92 @@ pub fn load_sweep(path: &Path) -> Result<Sweep, SweepError> {
     Ok(sweep)
 }
 
+/// The fields only one kind takes.
+fn check_kind_fields(
+    file: &SweepFile,
+    field: &dyn Fn(&str, String, &str) -> SweepError,
+) -> Result<(), SweepError> {
+    match file.kind {
+        SweepKind::Plan => {
+            let only_run = [
+                ("metrics", !file.metrics.is_empty()),
+                ("duration_secs", file.duration_secs.is_some()),
+                ("render", file.render.is_some()),
+            ];
+            if let Some((name, _)) = only_run.iter().find(|(_, set)| *set) {
+                return Err(field(
+                    name,
+                    "(set)".into(),
+                    "only with kind = \"run\" (a planning sweep's metrics are the planner's)",
+                ));
+            }
+        }
+        SweepKind::Run => {
+            if file.metrics.is_empty() {
+                return Err(field(
+                    "metrics",
+                    "[]".into(),
+                    "at least one dotted path into a run's metrics.json, e.g. \"estimates.vo/dala.ate_m\"",
+                ));
+            }
+            for (i, m) in file.metrics.iter().enumerate() {
+                if m.split('.').any(str::is_empty) {
+                    return Err(field(
+                        &format!("metrics[{i}]"),
+                        format!("{m:?}"),
+                        "a dotted path of non-empty keys into metrics.json",
+                    ));
+                }
+                if file.metrics[..i].contains(m) {
+                    return Err(field(
+                        &format!("metrics[{i}]"),
+                        format!("{m:?}"),
+                        "each metric once",
+                    ));
+                }
+            }
+            if let Some(d) = file.duration_secs {
+                if !(d.is_finite() && d > 0.0 && d <= 86_400.0) {
+                    return Err(field(
+                        "duration_secs",
+                        d.to_string(),
+                        "a number of seconds in (0, 86400]",
+                    ));
+                }
+            }
+        }
+    }
+    Ok(())
+}
+
 impl Sweep {
     /// The axis names, in order.
     pub fn axes(&self) -> Vec<String> {
         self.file.axes.keys().cloned().collect()
     }
 
-    /// `axis=value, ...` of a run.
+    /// The metric columns: the planner's for `plan`, the sweep file's for `run`.
+    pub fn metrics(&self) -> Vec<String> {
+        match self.file.kind {
+            SweepKind::Plan => METRICS.iter().map(|s| s.to_string()).collect(),
+            SweepKind::Run => self.file.metrics.clone(),
+        }
+    }
+
+    /// `axis=value, ...` of a run, and its seed.
     pub fn describe(&self, run: &SweepRun) -> String {
-        self.axes()
+        let mut parts: Vec<String> = self
+            .axes()
             .iter()
             .zip(&run.values)
             .map(|(k, v)| format!("{k}={}", value_text(v)))
-            .collect::<Vec<_>>()
-            .join(", ")
+            .collect();
+        parts.push(format!("seed={}", run.seed));
+        parts.join(", ")
     }
 
     /// A run's failure, with the sweep file and the run's values.
-    fn run_error(&self, run: &SweepRun, message: String) -> SweepError {
+    pub fn run_error(&self, run: &SweepRun, message: String) -> SweepError {
         SweepError::Run {
             path: self.path.clone(),
             index: run.index,
@@ -272,7 +421,7 @@ impl Sweep {
         }
     }
 
-    /// The run's scenario, loaded and validated.
+    /// The run's scenario, loaded and validated (with the sweep's `duration_secs`).
     pub fn scenario(&self, run: &SweepRun) -> Result<hetsim_scene::Scenario, SweepError> {
         let text = self.scenario_text(run)?;
         load_scenario_text(
@@ -280,188 +429,14 @@ impl Sweep {
             text,
             &LoadOptions {
                 seed: Some(run.seed),
-                duration_secs: None,
+                duration_secs: self.file.duration_secs,
             },
         )
         .map_err(|e| self.run_error(run, e.to_string()))
     }
 
-    /// The base scenario with a run's axis values written in.
-    pub fn scenario_text(&self, run: &SweepRun) -> Result<String, SweepError> {
-        let fail = |message: String| self.run_error(run, message);
-        let mut table: toml::Table =
-            toml::from_str(&self.base_text).map_err(|e| fail(e.to_string()))?;
-        for (key, value) in self.axes().iter().zip(&run.values) {
-            let mut segments: Vec<&str> = key.split('.').collect();
-            let last = segments
-                .pop()
-                .ok_or_else(|| fail("empty axis name".into()))?;
-            let mut at = &mut table;
-            for seg in segments {
-                at = at
-                    .entry(seg.to_string())
-                    .or_insert_with(|| toml::Value::Table(toml::Table::new()))
-                    .as_table_mut()
-                    .ok_or_else(|| {
-                        fail(format!(
-                            "axis {key}: {seg} is not a table in the base scenario"
-                        ))
-                    })?;
-            }
-            at.insert(last.to_string(), value.clone());
-        }
-        toml::to_string(&table).map_err(|e| fail(e.to_string()))
+    /// Where a whole run's results folder is kept: `runs/<i>` under the sweep's folder.
+    pub fn run_dir(out: &Path, run: &SweepRun) -> PathBuf {
+        out.join("runs").join(format!("{:06}", run.index))
     }
-
-    /// Runs one run: the coverage plan of the run's scenario.
-    pub fn run_one(&self, run: &SweepRun) -> Result<CoverageMetrics, SweepError> {
-        let scenario = self.scenario(run)?;
-        let (_, _, plan) =
-            plan_scenario(&scenario).map_err(|e| self.run_error(run, e.to_string()))?;
-        Ok(CoverageMetrics::of(&plan))
-    }
-
-    /// A run's row: index, axis values, seed, metrics.
-    fn row(&self, run: &SweepRun, m: &CoverageMetrics) -> Vec<String> {
-        let mut fields = vec![run.index.to_string()];
-        fields.extend(run.values.iter().map(value_text));
-        fields.push(run.seed.to_string());
-        fields.extend(metric_values(m).iter().map(|v| format!("{v}")));
-        fields
-    }
-
-    /// The header of `runs.csv`.
-    fn header(&self) -> Vec<String> {
-        let mut fields = vec!["run".to_string()];
-        fields.extend(self.axes());
-        fields.push("seed".to_string());
-        fields.extend(METRICS.iter().map(|s| s.to_string()));
-        fields
-    }
-}
-
-/// CSV text of some records.
-fn csv_text<I, R>(records: I) -> Vec<u8>
-where
-    I: IntoIterator<Item = R>,
-    R: IntoIterator,
-    R::Item: AsRef<[u8]>,
-{
-    let mut w = csv::Writer::from_writer(Vec::new());
-    for r in records {
-        w.write_record(r).expect("CSV writes to memory");
-    }
-    w.into_inner().expect("CSV flushes to memory")
-}
-
-/// The one record of a row file, checked against the sweep's header.
-fn read_row(path: &Path, header: &[String]) -> Result<Vec<String>, SweepError> {
-    let bytes = read(path)?;
-    let row_error = |row: usize, message: String| SweepError::Row {
-        path: path.to_path_buf(),
-        row,
-        message,
-    };
-    let mut reader = csv::ReaderBuilder::new()
-        .has_headers(false)
-        .flexible(true)
-        .from_reader(bytes.as_slice());
-    let mut records = reader.records();
-    let record = records
-        .next()
-        .ok_or_else(|| row_error(1, "empty row file".into()))?
-        .map_err(|e| row_error(1, e.to_string()))?;
-    if records.next().is_some() {
-        return Err(row_error(2, "a row file holds one record".into()));
-    }
-    if record.len() != header.len() {
-        return Err(row_error(
-            1,
-            format!(
-                "{} fields where the sweep has {} columns ({})",
-                record.len(),
-                header.len(),
-                header.join(",")
-            ),
-        ));
-    }
-    Ok(record.iter().map(str::to_string).collect())
-}
-
-/// Which runs a shard `k` of `n` (1-based) owns.
-pub fn in_shard(index: usize, shard: (usize, usize)) -> bool {
-    index % shard.1 == shard.0 - 1
-}
-
-/// Runs the sweep's pending runs of a shard in parallel on `jobs` threads, writing row files
-/// under `out/rows/`, then rebuilds the summary files from every row present. `progress`
-/// is called with (finished, total) after each run.
-pub fn run_sweep(
-    sweep: &Sweep,
-    out: &Path,
-    jobs: usize,
-    shard: (usize, usize),
-    progress: &(dyn Fn(usize, usize) + Sync),
-) -> Result<SweepSummary, SweepError> {
-    let rows = out.join("rows");
-    write_atomic(&out.join("sweep.toml"), &read(&sweep.path)?)?;
-    let mine: Vec<&SweepRun> = sweep
-        .runs
-        .iter()
-        .filter(|r| in_shard(r.index, shard))
-        .collect();
-    let pending: Vec<&SweepRun> = mine
-        .iter()
-        .copied()
-        .filter(|r| !rows.join(format!("{:06}.csv", r.index)).is_file())
-        .collect();
-    let done = AtomicUsize::new(mine.len() - pending.len());
-    progress(done.load(Ordering::Relaxed), mine.len());
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(jobs.max(1))
-        .build()
-        .map_err(|e| SweepError::Threads {
-            jobs,
-            message: e.to_string(),
-        })?;
-    let results: Vec<Result<(), SweepError>> = pool.install(|| {
-        use rayon::prelude::*;
-        pending
-            .par_iter()
-            .map(|run| {
-                let m = sweep.run_one(run)?;
-                write_atomic(
-                    &rows.join(format!("{:06}.csv", run.index)),
-                    &csv_text([sweep.row(run, &m)]),
-                )?;
-                progress(done.fetch_add(1, Ordering::Relaxed) + 1, mine.len());
-                Ok(())
-            })
-            .collect()
-    });
-    results.into_iter().collect::<Result<Vec<()>, _>>()?;
-    summarize(sweep, out)
-}
-
-/// Copies the row files of shard folders into `out` and rebuilds the summary there.
-pub fn merge(sweep: &Sweep, out: &Path, shards: &[PathBuf]) -> Result<SweepSummary, SweepError> {
-    let rows = out.join("rows");
-    for dir in shards {
-        let from = dir.join("rows");
-        let entries = std::fs::read_dir(&from).map_err(FileError::at(&from))?;
-        let mut names: Vec<PathBuf> = entries
-            .filter_map(|e| e.ok())
-            .map(|e| e.path())
-            .filter(|p| p.extension().is_some_and(|x| x == "csv"))
-            .collect();
-        names.sort();
-        for p in names {
-            write_atomic(
-                &rows.join(p.file_name().expect("row files have names")),
-                &read(&p)?,
-            )?;
-        }
-    }
-    write_atomic(&out.join("sweep.toml"), &read(&sweep.path)?)?;
-    summarize(sweep, out)
 }

@@ -29,7 +29,7 @@ pub struct StackedBox {
 
 /// Min, quartiles and max by linear interpolation between order statistics (NumPy's
 /// default), of a non-empty slice.
-fn quartiles(values: &[f64]) -> [f64; 5] {
+pub(crate) fn quartiles(values: &[f64]) -> [f64; 5] {
     let mut v = values.to_vec();
     v.sort_by(f64::total_cmp);
     let q = |p: f64| {

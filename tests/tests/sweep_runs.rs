@@ -1,0 +1,281 @@
+//! Sweeps of whole lockstep runs: axes over scenario and robot-file fields, metrics read from
+//! each run's metrics.json, the same files for any job count, sharding or resumption.
+
+use hetsim_tests::{hetsim, repo};
+use std::path::{Path, PathBuf};
+
+/// A lab sweep cut to its first 300 sim seconds (rendered grabs, tracker, radio): two compass
+/// noises on every c't-Bot x two seeds.
+fn lab_sweep(dir: &Path, extra: &str) -> PathBuf {
+    let path = dir.join("lab-runs.toml");
+    std::fs::write(
+        &path,
+        format!(
+            "schema_version = 1\nname = \"lab-runs\"\nkind = \"run\"\nbase = \"{}\"\nseeds = 2\nfirst_seed = 3\nduration_secs = 300.0\nmetrics = [\"team.imaged\", \"team.compass_heading_error_deg.mean\", \"robots.0.distance_m\", \"comms.sent\"]\n{extra}\n[axes]\n\"models.ctbot.sensors.compass.sigma_deg\" = [1.0, 8.0]\n",
+            repo().join("scenarios/lab.toml").display()
+        ),
+    )
+    .unwrap();
+    path
+}
+
+fn sweep(args: &[&str]) -> String {
+    let out = hetsim(&[&["sweep"], args].concat(), &[]);
+    let text = format!(
+        "{}{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(out.status.success(), "hetsim sweep {args:?}: {text}");
+    text
+}
+
+/// Every file of a sweep's folder but the runs' timing.json (wall time), by relative path.
+fn tree(dir: &Path) -> Vec<(String, Vec<u8>)> {
+    fn walk(root: &Path, at: &Path, files: &mut Vec<(String, Vec<u8>)>) {
+        let mut entries: Vec<_> = std::fs::read_dir(at)
+            .unwrap()
+            .map(|e| e.unwrap().path())
+            .collect();
+        entries.sort();
+        for p in entries {
+            let rel = p.strip_prefix(root).unwrap().display().to_string();
+            if p.is_dir() {
+                if rel != "shards" && rel != "slurm" {
+                    walk(root, &p, files);
+                }
+            } else if p.file_name().unwrap() != "timing.json" {
+                files.push((rel, std::fs::read(&p).unwrap()));
+            }
+        }
+    }
+    let mut files = Vec::new();
+    walk(dir, dir, &mut files);
+    files
+}
+
+fn assert_same_tree(a: &Path, b: &Path) {
+    let (ta, tb) = (tree(a), tree(b));
+    let names = |t: &[(String, Vec<u8>)]| t.iter().map(|(n, _)| n.clone()).collect::<Vec<_>>();
+    assert_eq!(names(&ta), names(&tb), "{} vs {}", a.display(), b.display());
+    for ((name, x), (_, y)) in ta.iter().zip(&tb) {
+        assert!(
+            x == y,
+            "{name} differs between {} and {}",
+            a.display(),
+            b.display()
+        );
+    }
+}
+
+fn csv_rows(path: &Path) -> Vec<Vec<String>> {
+    csv::Reader::from_path(path)
+        .unwrap()
+        .records()
+        .map(|r| r.unwrap().iter().map(str::to_string).collect())
+        .collect()
+}
+
+#[test]
+fn a_whole_run_sweep_is_the_same_for_any_jobs_sharding_and_resumption() {
+    let tmp = tempfile::tempdir().unwrap();
+    let file = lab_sweep(tmp.path(), "");
+    let f = file.to_str().unwrap();
+    let at = |name: &str| tmp.path().join(name);
+    let one = at("jobs1");
+    sweep(&[f, "--jobs", "1", "--out", one.to_str().unwrap()]);
+    let two = at("jobs2");
+    sweep(&[f, "--jobs", "2", "--out", two.to_str().unwrap()]);
+    assert_same_tree(&one, &two);
+
+    // runs.csv: a row per run with its axis value, seed, digest and the four metrics; the
+    // compass noise reached the robots (their resolved robot files in the manifest) and
+    // changed the runs.
+    let rows = csv_rows(&one.join("runs.csv"));
+    assert_eq!(rows.len(), 4);
+    let mut digests: Vec<&str> = rows.iter().map(|r| r[3].as_str()).collect();
+    digests.sort();
+    digests.dedup();
+    assert_eq!(digests.len(), 4, "every run differs: {rows:?}");
+    for row in &rows {
+        assert_eq!(row.len(), 4 + 4, "{row:?}");
+        let manifest: serde_json::Value = serde_json::from_slice(
+            &std::fs::read(
+                one.join("runs")
+                    .join(format!("{:06}", row[0].parse::<usize>().unwrap()))
+                    .join("manifest.json"),
+            )
+            .unwrap(),
+        )
+        .unwrap();
+        assert_eq!(manifest["digest"], row[3].as_str());
+        let sigma: f64 = row[1].parse().unwrap();
+        let robots = manifest["resolved"]["robots"].as_array().unwrap();
+        for r in robots.iter().filter(|r| r["model"]["name"] == "ctbot") {
+            let compass = r["model"]["sensors"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .find(|s| s["name"] == "compass")
+                .unwrap();
+            assert_eq!(compass["sigma_deg"].as_f64(), Some(sigma), "{}", r["name"]);
+        }
+        // The run's own figure, read back: the children's compass error grows with the noise
+        // it was given (a 1 deg compass cannot err by 8 deg on average, nor an 8 deg one by 1).
+        let err: f64 = row[5].parse().unwrap();
+        if sigma == 1.0 {
+            assert!(err < 3.0, "compass error {err} deg with sigma 1 deg");
+        } else {
+            assert!(err > 3.0, "compass error {err} deg with sigma 8 deg");
+        }
+    }
+    let md = std::fs::read_to_string(one.join("summary.md")).unwrap();
+    assert!(
+        md.contains("## `team.imaged`") && md.contains("4 of 4 runs"),
+        "{md}"
+    );
+    assert!(one.join("boxplot.png").is_file());
+
+    // Two shards and a merge: the same folder, run folders included.
+    let (s1, s2, merged) = (at("shard1"), at("shard2"), at("merged"));
+    sweep(&[f, "--shard", "1/2", "--out", s1.to_str().unwrap()]);
+    sweep(&[f, "--shard", "2/2", "--out", s2.to_str().unwrap()]);
+    sweep(&[
+        "merge",
+        f,
+        s1.to_str().unwrap(),
+        s2.to_str().unwrap(),
+        "--out",
+        merged.to_str().unwrap(),
+    ]);
+    assert_same_tree(&one, &merged);
+    // A shard missing from the merge is refused, naming the first run it lacks.
+    let partial = hetsim(
+        &[
+            "sweep",
+            "merge",
+            f,
+            s1.to_str().unwrap(),
+            "--out",
+            at("partial").to_str().unwrap(),
+        ],
+        &[],
+    );
+    let err = String::from_utf8_lossy(&partial.stderr);
+    assert!(
+        !partial.status.success()
+            && err.contains("2 of 4 runs")
+            && err.contains("first missing: run 1"),
+        "{err}"
+    );
+
+    // Resumption: a run whose row was lost but whose results folder is whole is read back,
+    // not run again (its timing.json is kept); a run with neither is run again.
+    let timing = one.join("runs/000001/timing.json");
+    let before = std::fs::read(&timing).unwrap();
+    std::fs::remove_file(one.join("rows/000001.csv")).unwrap();
+    std::fs::remove_file(one.join("rows/000002.csv")).unwrap();
+    std::fs::remove_dir_all(one.join("runs/000002")).unwrap();
+    std::fs::create_dir_all(one.join("runs/.000002.partial-1")).unwrap();
+    let resumed = sweep(&[f, "--out", one.to_str().unwrap()]);
+    assert!(resumed.contains("finished: 4 of 4 runs"), "{resumed}");
+    assert_eq!(
+        std::fs::read(&timing).unwrap(),
+        before,
+        "run 1 was not redone"
+    );
+    assert!(!one.join("runs/.000002.partial-1").exists());
+    assert_same_tree(&one, &two);
+}
+
+#[test]
+fn whole_run_sweeps_refuse_bad_metrics_and_axes_with_the_place() {
+    let tmp = tempfile::tempdir().unwrap();
+    // A metric path that is not in metrics.json names the key and what is there.
+    let path = tmp.path().join("bad.toml");
+    std::fs::write(
+        &path,
+        format!(
+            "schema_version = 1\nname = \"bad\"\nkind = \"run\"\nbase = \"{}\"\nseeds = 1\nduration_secs = 1.0\nrender = false\nmetrics = [\"team.no_such_figure\"]\n[axes]\n\"coverage.r_los_m\" = [2.0]\n",
+            repo().join("scenarios/lab.toml").display()
+        ),
+    )
+    .unwrap();
+    let out = hetsim(
+        &[
+            "sweep",
+            path.to_str().unwrap(),
+            "--out",
+            tmp.path().join("o").to_str().unwrap(),
+        ],
+        &[],
+    );
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "{err}");
+    assert!(
+        err.contains("bad.toml")
+            && err.contains("run 0")
+            && err.contains("no_such_figure")
+            && err.contains("imaged_fraction"),
+        "{err}"
+    );
+    assert!(!tmp.path().join("o/rows/000000.csv").exists());
+
+    // An axis naming a robot the scenario does not have lists the robots.
+    std::fs::write(
+        &path,
+        format!(
+            "schema_version = 1\nname = \"bad\"\nkind = \"run\"\nbase = \"{}\"\nseeds = 1\nmetrics = [\"comms.sent\"]\n[axes]\n\"robots.child9.sensors.compass.sigma_deg\" = [2.0]\n",
+            repo().join("scenarios/lab.toml").display()
+        ),
+    )
+    .unwrap();
+    let e = hetsim_eval::sweep::load_sweep(&path)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("child9") && e.contains("child1 (model ctbot)"),
+        "{e}"
+    );
+
+    // A robot-file field that does not exist is refused by the scenario loader, by name.
+    std::fs::write(
+        &path,
+        format!(
+            "schema_version = 1\nname = \"bad\"\nkind = \"run\"\nbase = \"{}\"\nseeds = 1\nmetrics = [\"comms.sent\"]\n[axes]\n\"robots.child1.sensors.compass.sigma_dg\" = [2.0]\n",
+            repo().join("scenarios/lab.toml").display()
+        ),
+    )
+    .unwrap();
+    let e = hetsim_eval::sweep::load_sweep(&path)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("sigma_dg") && e.contains("run 0"), "{e}");
+
+    // Fields of the other kind, and a run sweep without metrics.
+    for (body, field) in [
+        ("kind = \"plan\"\nmetrics = [\"a\"]\n", "metrics"),
+        ("kind = \"run\"\n", "metrics"),
+        ("kind = \"run\"\nmetrics = [\"a..b\"]\n", "metrics[0]"),
+        (
+            "kind = \"run\"\nmetrics = [\"a\"]\nduration_secs = -1.0\n",
+            "duration_secs",
+        ),
+    ] {
+        std::fs::write(
+            &path,
+            format!(
+                "schema_version = 1\nname = \"bad\"\nbase = \"{}\"\nseeds = 1\n{body}[axes]\n",
+                repo().join("scenarios/lab.toml").display()
+            ),
+        )
+        .unwrap();
+        let e = hetsim_eval::sweep::load_sweep(&path)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("bad.toml") && e.contains(&format!("`{field}`")),
+            "{body}: {e}"
+        );
+    }
+}
