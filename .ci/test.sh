@@ -13,3 +13,5 @@ echo "== rendered-image tests again (HETSIM_BACKEND=gl)"
 HETSIM_BACKEND=gl cargo test -p hetsim-tests \
     --test render --test vision --test vo_scale --test slam --test team \
     --test cameras --test oracle
+echo "== ROS 2 recordings decoded by Foxglove's and rosbags' decoders"
+bash tests/ros2/check.sh

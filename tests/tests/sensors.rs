@@ -303,7 +303,7 @@ fn wheel_odometry_overestimates_distance_by_the_slip() {
 }
 
 #[test]
-fn a_recorded_run_reads_back_with_the_expected_topics_and_counts() {
+fn a_json_recording_reads_back_with_the_expected_topics_and_counts() {
     let s = hetsim_scene::load_scenario(
         &repo().join("scenarios/lab.toml"),
         &LoadOptions {
@@ -314,7 +314,7 @@ fn a_recorded_run_reads_back_with_the_expected_topics_and_counts() {
     .unwrap();
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("lab.mcap");
-    let mut rec = Recorder::create(&path).unwrap();
+    let mut rec = Recorder::create(&path, hetsim_engine::record::RecordEncoding::Json).unwrap();
     let result = hetsim_tests::run_scenario(
         &s,
         RunOptions {

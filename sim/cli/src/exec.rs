@@ -2,7 +2,7 @@
 
 use anyhow::{Context, Result};
 use hetsim_engine::frames::FrameDump;
-use hetsim_engine::record::Recorder;
+use hetsim_engine::record::{RecordEncoding, Recorder};
 use hetsim_render::RenderOptions;
 use hetsim_scene::{load_scenario, LoadOptions, Scenario};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
@@ -16,8 +16,8 @@ pub type DumpSpec = (Option<(f64, f64)>, Option<Vec<String>>);
 pub struct Job<'a> {
     /// Results folder (default under `results/runs/`).
     pub out: Option<&'a Path>,
-    /// MCAP recording.
-    pub record: Option<&'a Path>,
+    /// MCAP recording, and its encoding.
+    pub record: Option<(&'a Path, RecordEncoding)>,
     /// Render the cameras on this adapter choice.
     pub render: Option<RenderOptions>,
     /// Dump frames (window, cameras).
@@ -94,7 +94,10 @@ pub fn run_scenario(loaded: &Scenario, job: &Job<'_>) -> Result<hetsim_eval::Run
     };
     let start = crate::bench::wall_clock();
     let clock = loaded.clock;
-    let mut recorder = job.record.map(Recorder::create).transpose()?;
+    let mut recorder = job
+        .record
+        .map(|(path, encoding)| Recorder::create(path, encoding))
+        .transpose()?;
     let frames_only = job
         .dump
         .as_ref()
@@ -169,7 +172,7 @@ pub fn run_scenario(loaded: &Scenario, job: &Job<'_>) -> Result<hetsim_eval::Run
         Err(e) => {
             // Nothing half-written stays behind: staged frames, an unfinished recording.
             let _ = std::fs::remove_dir_all(&staging);
-            if let Some(path) = job.record {
+            if let Some((path, _)) = job.record {
                 let _ = std::fs::remove_file(Recorder::partial_path(path));
             }
             return Err(e);

@@ -38,9 +38,14 @@ enum Cmd {
         /// Results directory (default: results/runs/<name>-seed<seed>-<digest8>).
         #[arg(long)]
         out: Option<PathBuf>,
-        /// Also record every message, command and ground-truth pose to this MCAP file.
+        /// Also record every message, command and ground-truth pose to this MCAP file
+        /// (ROS 2: CDR messages, ros2msg schemas).
         #[arg(long)]
         record: Option<PathBuf>,
+        /// The recording's encoding: ros2 (CDR; ros2 bag, rosbags and Foxglove read it) or
+        /// json (Foxglove's JSON schemas, images as base64 PNG).
+        #[arg(long, default_value = "ros2", value_parser = ["ros2", "json"])]
+        record_encoding: String,
         /// Write every camera frame (EuRoC layout, with depth and poses) under frames/.
         #[arg(long)]
         dump_frames: bool,
@@ -228,6 +233,7 @@ fn real_main() -> Result<()> {
             duration,
             out,
             record,
+            record_encoding,
             dump_frames,
             no_render,
             open_loop,
@@ -250,7 +256,14 @@ fn real_main() -> Result<()> {
                 &loaded,
                 &exec::Job {
                     out: out.as_deref(),
-                    record: record.as_deref(),
+                    record: record.as_deref().map(|p| {
+                        let encoding = if record_encoding == "json" {
+                            hetsim_engine::record::RecordEncoding::Json
+                        } else {
+                            hetsim_engine::record::RecordEncoding::Ros2
+                        };
+                        (p, encoding)
+                    }),
                     render,
                     dump: dump_frames.then_some((None, None)),
                     open_loop,

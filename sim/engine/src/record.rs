@@ -1,11 +1,21 @@
 //! Recording every message, command and ground-truth pose of a run to MCAP.
 //!
-//! Messages are JSON with JSON-schema schemas. Where Foxglove defines a schema the message
-//! follows it and carries its name, so Foxglove Studio shows it natively:
-//! `foxglove.PoseInFrame` (ground truth, `/<robot>/truth`), `foxglove.FrameTransform`
-//! (`/tf`: `world` -> `<robot>/base_link`), `foxglove.LocationFix` (GPS) and
-//! `foxglove.LaserScan`, `foxglove.CompressedImage` (PNG). The others (commands, compass, wheel odometry, IMU, child tracks,
-//! rendezvous, radio) use `hetsim.*` schemas written here.
+//! The default encoding is ROS 2's (MCAP profile `ros2`, schemas `ros2msg`, messages CDR), so
+//! `ros2 bag`, rosbags and Foxglove open a recording as it is:
+//!
+//! | topic | type |
+//! |---|---|
+//! | `/<robot>/truth` | `geometry_msgs/msg/PoseStamped` (frame `world`), every robot, at `truth_rate_hz` |
+//! | `/tf` | `tf2_msgs/msg/TFMessage`: `world` -> `<robot>/base_link` with each truth sample |
+//! | `/tf_static` | `base_link` -> each sensor's frame `<robot>/<sensor>` (cameras: the optical frame, z forward), once per sensor |
+//! | `/<robot>/<camera>[/left\|right]` | `sensor_msgs/msg/Image`, `rgb8`, raw |
+//! | `/<robot>/<gps>` | `sensor_msgs/msg/NavSatFix` (WGS-84 around [`GEO_ORIGIN`]) |
+//! | `/<robot>/<laser>` | `sensor_msgs/msg/LaserScan` (no return: +inf, REP-117) |
+//! | `/<robot>/<imu>` | `sensor_msgs/msg/Imu` (no orientation: `orientation_covariance[0] = -1`) |
+//! | `/<robot>/cmd`, compass, wheel odometry, child tracks, rendezvous, image match, `/<robot>/radio` | `hetsim_msgs/msg/*`, defined in the file |
+//!
+//! `--record-encoding json` writes the earlier JSON encoding instead (Foxglove's JSON schemas,
+//! images as base64 PNG; see `record/json.rs`).
 //!
 //! Frames follow ROS REP-103: `world` is x east, y north, z up; `<robot>/base_link` is
 //! x forward, y left, z up. GPS fixes are converted from the local east-north-up frame to
@@ -15,10 +25,12 @@
 //! The file is written under a temporary name and renamed when finished.
 
 use hetsim_msgs::{Command, Pose, SensorMsg};
-use serde_json::{json, Value};
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, BTreeSet};
 use std::io::BufWriter;
 use std::path::{Path, PathBuf};
+
+mod json;
+mod ros2;
 
 /// Latitude and longitude (degrees) and altitude (metres) of the world origin: LAAS-CNRS,
 /// Toulouse. Any origin would do; this one is documented so positions can be reproduced.
@@ -26,81 +38,22 @@ pub const GEO_ORIGIN: (f64, f64, f64) = (43.5628, 1.4767, 150.0);
 
 const EARTH_RADIUS_M: f64 = 6_378_137.0;
 
-fn stamp(ns: u64) -> Value {
-    json!({"sec": ns / 1_000_000_000, "nsec": ns % 1_000_000_000})
+/// Latitude, longitude (degrees) and altitude of a point of the world frame (east, north, up).
+fn geo(position_m: [f64; 3]) -> (f64, f64, f64) {
+    let (lat0, lon0, alt0) = GEO_ORIGIN;
+    let lat = lat0 + (position_m[1] / EARTH_RADIUS_M).to_degrees();
+    let lon = lon0 + (position_m[0] / (EARTH_RADIUS_M * lat0.to_radians().cos())).to_degrees();
+    (lat, lon, alt0 + position_m[2])
 }
 
-fn pose_json(p: &Pose) -> Value {
-    let t = p.translation.vector;
-    let q = p.rotation.quaternion();
-    json!({"position": {"x": t.x, "y": t.y, "z": t.z}, "orientation": {"x": q.i, "y": q.j, "z": q.k, "w": q.w}})
-}
-
-fn schema_for(name: &str) -> Value {
-    let time = json!({"type": "object", "properties": {"sec": {"type": "integer"}, "nsec": {"type": "integer"}}});
-    let vec3 = json!({"type": "object", "properties": {"x": {"type": "number"}, "y": {"type": "number"}, "z": {"type": "number"}}});
-    let quat = json!({"type": "object", "properties": {"x": {"type": "number"}, "y": {"type": "number"}, "z": {"type": "number"}, "w": {"type": "number"}}});
-    let pose = json!({"type": "object", "properties": {"position": vec3, "orientation": quat}});
-    let number = json!({"type": "number"});
-    let string = json!({"type": "string"});
-    let properties = match name {
-        "foxglove.PoseInFrame" => json!({"timestamp": time, "frame_id": string, "pose": pose}),
-        "foxglove.FrameTransform" => {
-            json!({"timestamp": time, "parent_frame_id": string, "child_frame_id": string, "translation": vec3, "rotation": quat})
-        }
-        "foxglove.LocationFix" => {
-            json!({"timestamp": time, "frame_id": string, "latitude": number, "longitude": number, "altitude": number, "position_covariance": {"type": "array", "items": number}, "position_covariance_type": {"type": "integer"}})
-        }
-        "foxglove.LaserScan" => {
-            json!({"timestamp": time, "frame_id": string, "pose": pose, "start_angle": number, "end_angle": number, "ranges": {"type": "array", "items": number}, "intensities": {"type": "array", "items": number}})
-        }
-        "hetsim.Command" => {
-            json!({"timestamp": time, "kind": string, "left_mps": number, "right_mps": number, "roll_rad": number, "pitch_rad": number, "yaw_rate_radps": number, "climb_rate_mps": number})
-        }
-        "hetsim.Compass" => json!({"timestamp": time, "frame_id": string, "heading_rad": number}),
-        "hetsim.WheelOdometry" => {
-            json!({"timestamp": time, "frame_id": string, "left_m": number, "right_m": number})
-        }
-        "hetsim.Imu" => {
-            json!({"timestamp": time, "frame_id": string, "angular_velocity": vec3, "linear_acceleration": vec3})
-        }
-        "hetsim.ChildTracks" => {
-            json!({"timestamp": time, "frame_id": string, "tracks": {"type": "array", "items": {"type": "object", "properties": {"child": string, "x": number, "y": number}}}})
-        }
-        "hetsim.Rendezvous" => {
-            json!({"timestamp": time, "frame_id": string, "other": string, "pose": pose, "sigma_m": number, "sigma_rad": number})
-        }
-        "hetsim.ImageMatch" => {
-            json!({"timestamp": time, "frame_id": string, "other": string, "other_stamp": time, "pose": pose, "sigma_m": number, "sigma_rad": number})
-        }
-        "foxglove.CompressedImage" => {
-            json!({"timestamp": time, "frame_id": string, "data": {"type": "string", "contentEncoding": "base64"}, "format": string})
-        }
-        "hetsim.Comms" => {
-            json!({"timestamp": time, "from": string, "to": string, "topic": string, "sent": time, "bytes": {"type": "integer"}})
-        }
-        _ => json!({}),
-    };
-    json!({"title": name, "type": "object", "properties": properties})
-}
-
-/// Standard base64 (RFC 4648) with padding.
-fn base64(bytes: &[u8]) -> String {
-    const ALPHABET: &[u8; 64] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
-    let mut out = String::with_capacity(bytes.len().div_ceil(3) * 4);
-    for chunk in bytes.chunks(3) {
-        let n = (chunk[0] as u32) << 16
-            | (*chunk.get(1).unwrap_or(&0) as u32) << 8
-            | *chunk.get(2).unwrap_or(&0) as u32;
-        for i in 0..4 {
-            if i <= chunk.len() {
-                out.push(ALPHABET[(n >> (18 - 6 * i) & 63) as usize] as char);
-            } else {
-                out.push('=');
-            }
-        }
-    }
-    out
+/// How a recording encodes its messages.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum RecordEncoding {
+    /// ROS 2: CDR messages with `ros2msg` schemas (the default).
+    #[default]
+    Ros2,
+    /// JSON messages with JSON schemas (Foxglove's where it has one).
+    Json,
 }
 
 /// Why a recording could not be written.
@@ -122,9 +75,12 @@ pub enum RecordError {
 /// Writes an MCAP file during a run.
 pub struct Recorder {
     writer: mcap::Writer<BufWriter<std::fs::File>>,
+    encoding: RecordEncoding,
     schemas: BTreeMap<String, u16>,
     channels: BTreeMap<String, u16>,
     counts: BTreeMap<String, u64>,
+    /// Sensor frames whose `/tf_static` transform is written.
+    static_frames: BTreeSet<String>,
     sequence: u32,
     tmp: PathBuf,
     path: PathBuf,
@@ -132,54 +88,80 @@ pub struct Recorder {
 
 impl Recorder {
     /// Starts a recording that will be at `path` once [`Recorder::finish`] succeeds.
-    pub fn create(path: &Path) -> Result<Self, RecordError> {
+    pub fn create(path: &Path, encoding: RecordEncoding) -> Result<Self, RecordError> {
         use hetsim_core::files::FileError;
         let tmp = Self::partial_path(path);
         if let Some(dir) = path.parent().filter(|p| !p.as_os_str().is_empty()) {
             std::fs::create_dir_all(dir).map_err(FileError::at(dir))?;
         }
         let file = std::fs::File::create(&tmp).map_err(FileError::at(&tmp))?;
-        let writer =
-            mcap::Writer::new(BufWriter::new(file)).map_err(|source| RecordError::Mcap {
+        let profile = match encoding {
+            RecordEncoding::Ros2 => "ros2",
+            RecordEncoding::Json => "",
+        };
+        let writer = mcap::WriteOptions::new()
+            .profile(profile)
+            .library(concat!("hetsim ", env!("CARGO_PKG_VERSION")))
+            .create(BufWriter::new(file))
+            .map_err(|source| RecordError::Mcap {
                 path: tmp.clone(),
                 source,
             })?;
         Ok(Self {
             writer,
+            encoding,
             schemas: BTreeMap::new(),
             channels: BTreeMap::new(),
             counts: BTreeMap::new(),
+            static_frames: BTreeSet::new(),
             sequence: 0,
             tmp,
             path: path.to_path_buf(),
         })
     }
 
-    fn write(&mut self, topic: &str, schema: &str, stamp_ns: u64, message: &Value) {
-        let channel = match self.channels.get(topic) {
-            Some(c) => *c,
+    /// The channel of a topic, registering it (and its schema) on first use.
+    fn channel(&mut self, topic: &str, schema: &str) -> u16 {
+        if let Some(c) = self.channels.get(topic) {
+            return *c;
+        }
+        let schema_id = match self.schemas.get(schema) {
+            Some(s) => *s,
             None => {
-                let schema_id = match self.schemas.get(schema) {
-                    Some(s) => *s,
-                    None => {
-                        let data =
-                            serde_json::to_vec(&schema_for(schema)).expect("schemas serialize");
-                        let id = self
-                            .writer
-                            .add_schema(schema, "jsonschema", &data)
-                            .expect("schema registers");
-                        self.schemas.insert(schema.to_string(), id);
-                        id
-                    }
+                let (encoding, data) = match self.encoding {
+                    RecordEncoding::Ros2 => (
+                        "ros2msg",
+                        ros2::definition(schema)
+                            .unwrap_or_else(|| panic!("no ros2msg definition of {schema}"))
+                            .into_bytes(),
+                    ),
+                    RecordEncoding::Json => (
+                        "jsonschema",
+                        serde_json::to_vec(&json::schema_for(schema)).expect("schemas serialize"),
+                    ),
                 };
-                let c = self
+                let id = self
                     .writer
-                    .add_channel(schema_id, topic, "json", &BTreeMap::new())
-                    .expect("channel registers");
-                self.channels.insert(topic.to_string(), c);
-                c
+                    .add_schema(schema, encoding, &data)
+                    .expect("schema registers");
+                self.schemas.insert(schema.to_string(), id);
+                id
             }
         };
+        let message_encoding = match self.encoding {
+            RecordEncoding::Ros2 => "cdr",
+            RecordEncoding::Json => "json",
+        };
+        let c = self
+            .writer
+            .add_channel(schema_id, topic, message_encoding, &BTreeMap::new())
+            .expect("channel registers");
+        self.channels.insert(topic.to_string(), c);
+        c
+    }
+
+    fn write_bytes(&mut self, topic: &str, schema: &str, stamp_ns: u64, data: &[u8]) {
+        let channel = self.channel(topic, schema);
         self.sequence += 1;
         let header = mcap::records::MessageHeader {
             channel_id: channel,
@@ -187,47 +169,142 @@ impl Recorder {
             log_time: stamp_ns,
             publish_time: stamp_ns,
         };
-        let data = serde_json::to_vec(message).expect("messages serialize");
         // A failing disk surfaces at finish(), which reports it; the run goes on meanwhile.
-        let _ = self.writer.write_to_known_channel(&header, &data);
+        let _ = self.writer.write_to_known_channel(&header, data);
         *self.counts.entry(topic.to_string()).or_default() += 1;
+    }
+
+    fn write_json(
+        &mut self,
+        topic: &str,
+        schema: &str,
+        stamp_ns: u64,
+        message: &serde_json::Value,
+    ) {
+        let data = serde_json::to_vec(message).expect("messages serialize");
+        self.write_bytes(topic, schema, stamp_ns, &data);
+    }
+
+    fn write_cdr<T: serde::Serialize>(
+        &mut self,
+        topic: &str,
+        schema: &str,
+        stamp_ns: u64,
+        message: &T,
+    ) {
+        let data = ros2::encode(message);
+        self.write_bytes(topic, schema, stamp_ns, &data);
     }
 
     /// Ground truth of a robot: its pose and the `world` -> `<robot>/base_link` transform.
     pub fn truth(&mut self, robot: &str, stamp_ns: u64, pose: &Pose) {
-        self.write(
+        if self.encoding == RecordEncoding::Json {
+            return self.json_truth(robot, stamp_ns, pose);
+        }
+        let header = |frame: &str| ros2::Header {
+            stamp: ros2::Time::of(stamp_ns),
+            frame_id: frame.to_string(),
+        };
+        self.write_cdr(
             &format!("/{robot}/truth"),
-            "foxglove.PoseInFrame",
+            "geometry_msgs/msg/PoseStamped",
             stamp_ns,
-            &json!({"timestamp": stamp(stamp_ns), "frame_id": "world", "pose": pose_json(pose)}),
+            &ros2::PoseStamped {
+                header: header("world"),
+                pose: ros2::Pose::of(pose),
+            },
         );
-        let p = pose_json(pose);
-        self.write("/tf", "foxglove.FrameTransform", stamp_ns, &json!({"timestamp": stamp(stamp_ns), "parent_frame_id": "world", "child_frame_id": format!("{robot}/base_link"), "translation": p["position"], "rotation": p["orientation"]}));
+        self.write_cdr(
+            "/tf",
+            "tf2_msgs/msg/TFMessage",
+            stamp_ns,
+            &ros2::TfMessage {
+                transforms: vec![ros2::TransformStamped {
+                    header: header("world"),
+                    child_frame_id: format!("{robot}/base_link"),
+                    transform: ros2::Pose::of(pose),
+                }],
+            },
+        );
     }
 
     /// A robot's actuator command.
     pub fn command(&mut self, robot: &str, stamp_ns: u64, cmd: &Command) {
-        let body = match *cmd {
+        if self.encoding == RecordEncoding::Json {
+            return self.json_command(robot, stamp_ns, cmd);
+        }
+        let mut m = ros2::Command {
+            header: ros2::Header {
+                stamp: ros2::Time::of(stamp_ns),
+                frame_id: format!("{robot}/base_link"),
+            },
+            kind: "stop",
+            left_mps: 0.0,
+            right_mps: 0.0,
+            roll_rad: 0.0,
+            pitch_rad: 0.0,
+            yaw_rate_radps: 0.0,
+            climb_rate_mps: 0.0,
+        };
+        match *cmd {
             Command::Wheels {
                 left_mps,
                 right_mps,
-            } => json!({"kind": "wheels", "left_mps": left_mps, "right_mps": right_mps}),
+            } => (m.kind, m.left_mps, m.right_mps) = ("wheels", left_mps, right_mps),
             Command::Helicopter {
                 roll_rad,
                 pitch_rad,
                 yaw_rate_radps,
                 climb_rate_mps,
             } => {
-                json!({"kind": "helicopter", "roll_rad": roll_rad, "pitch_rad": pitch_rad, "yaw_rate_radps": yaw_rate_radps, "climb_rate_mps": climb_rate_mps})
+                m.kind = "helicopter";
+                (m.roll_rad, m.pitch_rad) = (roll_rad, pitch_rad);
+                (m.yaw_rate_radps, m.climb_rate_mps) = (yaw_rate_radps, climb_rate_mps);
             }
-            Command::Stop => json!({"kind": "stop"}),
-        };
-        let mut msg = body;
-        msg["timestamp"] = stamp(stamp_ns);
-        self.write(&format!("/{robot}/cmd"), "hetsim.Command", stamp_ns, &msg);
+            Command::Stop => {}
+        }
+        self.write_cdr(
+            &format!("/{robot}/cmd"),
+            "hetsim_msgs/msg/Command",
+            stamp_ns,
+            &m,
+        );
     }
 
-    /// A sensor message or a radio delivery for `robot`, on `/<topic>`.
+    /// The frame of a robot's sensor, with its `/tf_static` transform written the first time.
+    fn sensor_frame(
+        &mut self,
+        robot: &str,
+        sensor: &str,
+        body_from_sensor: Option<&Pose>,
+        stamp_ns: u64,
+    ) -> String {
+        let Some(mount) = body_from_sensor else {
+            return format!("{robot}/base_link");
+        };
+        let frame = format!("{robot}/{}", sensor.replace('/', "_"));
+        if self.static_frames.insert(frame.clone()) {
+            self.write_cdr(
+                "/tf_static",
+                "tf2_msgs/msg/TFMessage",
+                stamp_ns,
+                &ros2::TfMessage {
+                    transforms: vec![ros2::TransformStamped {
+                        header: ros2::Header {
+                            stamp: ros2::Time::of(stamp_ns),
+                            frame_id: format!("{robot}/base_link"),
+                        },
+                        child_frame_id: frame.clone(),
+                        transform: ros2::Pose::of(mount),
+                    }],
+                },
+            );
+        }
+        frame
+    }
+
+    /// A sensor message or a radio delivery for `robot`, on `/<topic>`; `body_from_sensor`
+    /// is the sensor's mount (a camera's optical frame), where it has one.
     pub fn sensor(
         &mut self,
         robot: &str,
@@ -235,46 +312,203 @@ impl Recorder {
         body_from_sensor: Option<&Pose>,
         msg: &SensorMsg,
     ) {
+        if self.encoding == RecordEncoding::Json {
+            return self.json_sensor(robot, topic, body_from_sensor, msg);
+        }
         let t = msg.stamp_ns();
-        let frame = format!("{robot}/base_link");
+        let sensor = topic.split_once('/').map_or(topic, |(_, s)| s);
+        let header = |frame: String| ros2::Header {
+            stamp: ros2::Time::of(t),
+            frame_id: frame,
+        };
+        let pose = ros2::Pose::of;
         let topic = format!("/{topic}");
         match msg {
             // The engine records every robot's truth itself, oracle or not.
             SensorMsg::TruthPose(_) => {}
-            SensorMsg::Compass(m) => self.write(&topic, "hetsim.Compass", t, &json!({"timestamp": stamp(t), "frame_id": frame, "heading_rad": m.heading_rad})),
-            SensorMsg::Gps(m) => {
-                let (lat0, lon0, alt0) = GEO_ORIGIN;
-                let lat = lat0 + (m.position_m[1] / EARTH_RADIUS_M).to_degrees();
-                let lon = lon0 + (m.position_m[0] / (EARTH_RADIUS_M * lat0.to_radians().cos())).to_degrees();
-                let var = m.sigma_m * m.sigma_m;
-                self.write(&topic, "foxglove.LocationFix", t, &json!({"timestamp": stamp(t), "frame_id": frame, "latitude": lat, "longitude": lon, "altitude": alt0 + m.position_m[2], "position_covariance": [var, 0.0, 0.0, 0.0, var, 0.0, 0.0, 0.0, var], "position_covariance_type": 2}));
+            SensorMsg::Image(m) => {
+                let frame = self.sensor_frame(robot, sensor, body_from_sensor, t);
+                self.write_cdr(
+                    &topic,
+                    "sensor_msgs/msg/Image",
+                    t,
+                    &ros2::Image {
+                        header: header(frame),
+                        height: m.height,
+                        width: m.width,
+                        encoding: "rgb8",
+                        is_bigendian: 0,
+                        step: m.width * 3,
+                        data: &m.rgb,
+                    },
+                );
             }
-            SensorMsg::WheelOdometry(m) => self.write(&topic, "hetsim.WheelOdometry", t, &json!({"timestamp": stamp(t), "frame_id": frame, "left_m": m.left_m, "right_m": m.right_m})),
-            SensorMsg::Imu(m) => {
-                let [wx, wy, wz] = m.angular_rate_radps;
-                let [ax, ay, az] = m.accel_mps2;
-                self.write(&topic, "hetsim.Imu", t, &json!({"timestamp": stamp(t), "frame_id": frame, "angular_velocity": {"x": wx, "y": wy, "z": wz}, "linear_acceleration": {"x": ax, "y": ay, "z": az}}));
+            SensorMsg::Gps(m) => {
+                let frame = self.sensor_frame(robot, sensor, body_from_sensor, t);
+                let (latitude, longitude, altitude) = geo(m.position_m);
+                let var = m.sigma_m * m.sigma_m;
+                self.write_cdr(
+                    &topic,
+                    "sensor_msgs/msg/NavSatFix",
+                    t,
+                    &ros2::NavSatFix {
+                        header: header(frame),
+                        status: ros2::NavSatStatus {
+                            status: 0,
+                            service: 1,
+                        },
+                        latitude,
+                        longitude,
+                        altitude,
+                        position_covariance: [var, 0.0, 0.0, 0.0, var, 0.0, 0.0, 0.0, var],
+                        position_covariance_type: 2,
+                    },
+                );
             }
             SensorMsg::LaserScan(m) => {
-                let end = m.angle_min_rad + m.angle_increment_rad * (m.ranges_m.len().max(1) - 1) as f64;
-                // JSON has no infinity: beams without a return are written as range_max + 1.
-                let ranges: Vec<f64> = m.ranges_m.iter().map(|r| if r.is_finite() { *r as f64 } else { m.range_max_m + 1.0 }).collect();
-                let pose = body_from_sensor.map_or_else(|| pose_json(&Pose::identity()), pose_json);
-                self.write(&topic, "foxglove.LaserScan", t, &json!({"timestamp": stamp(t), "frame_id": frame, "pose": pose, "start_angle": m.angle_min_rad, "end_angle": end, "ranges": ranges, "intensities": []}));
+                let frame = self.sensor_frame(robot, sensor, body_from_sensor, t);
+                let last =
+                    m.angle_min_rad + m.angle_increment_rad * (m.ranges_m.len().max(1) - 1) as f64;
+                self.write_cdr(
+                    &topic,
+                    "sensor_msgs/msg/LaserScan",
+                    t,
+                    &ros2::LaserScan {
+                        header: header(frame),
+                        angle_min: m.angle_min_rad as f32,
+                        angle_max: last as f32,
+                        angle_increment: m.angle_increment_rad as f32,
+                        time_increment: 0.0,
+                        scan_time: 0.0,
+                        range_min: 0.0,
+                        range_max: m.range_max_m as f32,
+                        ranges: &m.ranges_m,
+                        intensities: &[],
+                    },
+                );
+            }
+            SensorMsg::Imu(m) => {
+                let frame = self.sensor_frame(robot, sensor, body_from_sensor, t);
+                let [wx, wy, wz] = m.angular_rate_radps;
+                let [ax, ay, az] = m.accel_mps2;
+                let mut no_orientation = [0.0; 9];
+                no_orientation[0] = -1.0;
+                self.write_cdr(
+                    &topic,
+                    "sensor_msgs/msg/Imu",
+                    t,
+                    &ros2::Imu {
+                        header: header(frame),
+                        orientation: ros2::Quaternion {
+                            x: 0.0,
+                            y: 0.0,
+                            z: 0.0,
+                            w: 1.0,
+                        },
+                        orientation_covariance: no_orientation,
+                        angular_velocity: ros2::Vector3 {
+                            x: wx,
+                            y: wy,
+                            z: wz,
+                        },
+                        angular_velocity_covariance: [0.0; 9],
+                        linear_acceleration: ros2::Vector3 {
+                            x: ax,
+                            y: ay,
+                            z: az,
+                        },
+                        linear_acceleration_covariance: [0.0; 9],
+                    },
+                );
+            }
+            SensorMsg::Compass(m) => {
+                let frame = self.sensor_frame(robot, sensor, body_from_sensor, t);
+                self.write_cdr(
+                    &topic,
+                    "hetsim_msgs/msg/Compass",
+                    t,
+                    &ros2::Compass {
+                        header: header(frame),
+                        heading_rad: m.heading_rad,
+                    },
+                );
+            }
+            SensorMsg::WheelOdometry(m) => {
+                let frame = self.sensor_frame(robot, sensor, body_from_sensor, t);
+                self.write_cdr(
+                    &topic,
+                    "hetsim_msgs/msg/WheelOdometry",
+                    t,
+                    &ros2::WheelOdometry {
+                        header: header(frame),
+                        left_m: m.left_m,
+                        right_m: m.right_m,
+                    },
+                );
             }
             SensorMsg::ChildTracks(m) => {
-                let tracks: Vec<Value> = m.tracks.iter().map(|k| json!({"child": k.child, "x": k.position_m[0], "y": k.position_m[1]})).collect();
-                self.write(&topic, "hetsim.ChildTracks", t, &json!({"timestamp": stamp(t), "frame_id": "world", "tracks": tracks}));
+                let tracks = m
+                    .tracks
+                    .iter()
+                    .map(|k| ros2::ChildTrack {
+                        child: &k.child,
+                        x: k.position_m[0],
+                        y: k.position_m[1],
+                    })
+                    .collect();
+                self.write_cdr(
+                    &topic,
+                    "hetsim_msgs/msg/ChildTracks",
+                    t,
+                    &ros2::ChildTracks {
+                        header: header("world".into()),
+                        tracks,
+                    },
+                );
             }
-            SensorMsg::Rendezvous(m) => self.write(&topic, "hetsim.Rendezvous", t, &json!({"timestamp": stamp(t), "frame_id": frame, "other": m.other, "pose": pose_json(&m.relative), "sigma_m": m.sigma_m, "sigma_rad": m.sigma_rad})),
-            SensorMsg::ImageMatch(m) => self.write(&topic, "hetsim.ImageMatch", t, &json!({"timestamp": stamp(t), "frame_id": frame, "other": m.other, "other_stamp": stamp(m.other_stamp_ns), "pose": pose_json(&m.relative), "sigma_m": m.sigma_m, "sigma_rad": m.sigma_rad})),
-            SensorMsg::Image(m) => {
-                let mut png = Vec::new();
-                let img = image::RgbImage::from_raw(m.width, m.height, m.rgb.clone()).expect("image size matches its pixels");
-                img.write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png).expect("PNG encodes in memory");
-                self.write(&topic, "foxglove.CompressedImage", t, &json!({"timestamp": stamp(t), "frame_id": format!("{robot}/{}", m.sensor.replace('/', "_")), "data": base64(&png), "format": "png"}));
+            SensorMsg::Rendezvous(m) => {
+                let frame = self.sensor_frame(robot, sensor, body_from_sensor, t);
+                self.write_cdr(
+                    &topic,
+                    "hetsim_msgs/msg/Rendezvous",
+                    t,
+                    &ros2::Rendezvous {
+                        header: header(frame),
+                        other: &m.other,
+                        pose: pose(&m.relative),
+                        sigma_m: m.sigma_m,
+                        sigma_rad: m.sigma_rad,
+                    },
+                );
             }
-            SensorMsg::Comms(m) => self.write(&format!("/{robot}/radio"), "hetsim.Comms", t, &json!({"timestamp": stamp(t), "from": m.from, "to": robot, "topic": m.topic, "sent": stamp(m.sent_ns), "bytes": m.payload.len()})),
+            SensorMsg::ImageMatch(m) => {
+                self.write_cdr(
+                    &topic,
+                    "hetsim_msgs/msg/ImageMatch",
+                    t,
+                    &ros2::ImageMatch {
+                        header: header(format!("{robot}/base_link")),
+                        other: &m.other,
+                        other_stamp: ros2::Time::of(m.other_stamp_ns),
+                        pose: pose(&m.relative),
+                        sigma_m: m.sigma_m,
+                        sigma_rad: m.sigma_rad,
+                    },
+                );
+            }
+            SensorMsg::Comms(m) => self.write_cdr(
+                &format!("/{robot}/radio"),
+                "hetsim_msgs/msg/Comms",
+                t,
+                &ros2::Comms {
+                    header: header(format!("{robot}/base_link")),
+                    from: &m.from,
+                    to: robot,
+                    topic: &m.topic,
+                    sent: ros2::Time::of(m.sent_ns),
+                    bytes: m.payload.len().min(u32::MAX as usize) as u32,
+                },
+            ),
         }
     }
 
@@ -306,23 +540,5 @@ impl Recorder {
         std::fs::rename(&self.tmp, &self.path)
             .map_err(hetsim_core::files::FileError::at(&self.path))?;
         Ok(self.path)
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    #[test]
-    fn base64_matches_rfc_4648_vectors() {
-        for (plain, coded) in [
-            ("", ""),
-            ("f", "Zg=="),
-            ("fo", "Zm8="),
-            ("foo", "Zm9v"),
-            ("foob", "Zm9vYg=="),
-            ("fooba", "Zm9vYmE="),
-            ("foobar", "Zm9vYmFy"),
-        ] {
-            assert_eq!(super::base64(plain.as_bytes()), coded);
-        }
     }
 }

@@ -85,9 +85,16 @@ impl Post<'_> {
     }
 
     /// [`Post::deliver`] for a message whose encoding was hashed beforehand (an image).
-    fn deliver_hashed(&mut self, robot: usize, topic: &str, msg: SensorMsg, hash: (u64, [u8; 32])) {
+    fn deliver_hashed(
+        &mut self,
+        robot: usize,
+        topic: &str,
+        msg: SensorMsg,
+        mount: &Pose,
+        hash: (u64, [u8; 32]),
+    ) {
         self.digest.record_hashed(topic, hash);
-        self.file(robot, topic, msg, None);
+        self.file(robot, topic, msg, Some(mount));
     }
 
     /// The recording, the counts and the inbox.
@@ -329,12 +336,16 @@ fn run_on_worker(
                         d.write(&shot)?;
                     }
                 }
-                images.push((shot.robot, shot.topic, SensorMsg::Image(shot.image)));
+                let mount = shot.body_from_optical;
+                images.push((shot.robot, shot.topic, SensorMsg::Image(shot.image), mount));
             }
             // Megabytes each: hashed in parallel, then recorded in camera order.
-            let hashes: Vec<_> = images.par_iter().map(|(_, _, m)| hash_encoded(m)).collect();
-            for ((robot, topic, msg), hash) in images.into_iter().zip(hashes) {
-                post.deliver_hashed(robot, &topic, msg, hash);
+            let hashes: Vec<_> = images
+                .par_iter()
+                .map(|(_, _, m, _)| hash_encoded(m))
+                .collect();
+            for ((robot, topic, msg, mount), hash) in images.into_iter().zip(hashes) {
+                post.deliver_hashed(robot, &topic, msg, &mount, hash);
             }
         }
         // 5. radio deliveries
