@@ -42,8 +42,16 @@ fn folder_of(path: &Path) -> &Path {
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), FileError> {
     let dir = folder_of(path);
     std::fs::create_dir_all(dir).map_err(FileError::at(dir))?;
-    let mut tmp = tempfile::Builder::new()
-        .prefix(".partial-")
+    let mut builder = tempfile::Builder::new();
+    builder.prefix(".partial-");
+    // A temporary file is private (0600); the file it becomes is an ordinary output, readable
+    // as one written with File::create would be (0644, less the umask).
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::PermissionsExt;
+        builder.permissions(std::fs::Permissions::from_mode(0o644));
+    }
+    let mut tmp = builder
         .tempfile_in(dir)
         .map_err(FileError::at(dir))?;
     tmp.write_all(bytes).map_err(FileError::at(path))?;
@@ -104,6 +112,18 @@ pub fn write_dir_atomic(
 
 #[cfg(test)]
 mod tests {
+    #[cfg(unix)]
+    #[test]
+    fn an_atomically_written_file_has_the_mode_of_an_ordinary_one() {
+        use std::os::unix::fs::PermissionsExt;
+        let dir = tempfile::tempdir().unwrap();
+        let (atomic, plain) = (dir.path().join("a.json"), dir.path().join("b.json"));
+        write_atomic(&atomic, b"{}").unwrap();
+        std::fs::write(&plain, b"{}").unwrap();
+        let mode = |p: &Path| std::fs::metadata(p).unwrap().permissions().mode() & 0o777;
+        assert_eq!(mode(&atomic), mode(&plain), "not the temporary file's private 0600");
+    }
+
     use super::*;
 
     #[test]
