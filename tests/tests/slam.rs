@@ -15,8 +15,12 @@ const K: Intrinsics = hetsim_tests::TEST_INTRINSICS;
 struct Still;
 
 impl RobotStack for Still {
-    fn step(&mut self, _: u64, _: &[SensorMsg]) -> hetsim_msgs::Command {
-        hetsim_msgs::Command::Stop
+    fn step(
+        &mut self,
+        _: u64,
+        _: &[SensorMsg],
+    ) -> Result<hetsim_msgs::Command, hetsim_msgs::InputError> {
+        Ok(hetsim_msgs::Command::Stop)
     }
     fn status(&self) -> hetsim_msgs::StackStatus {
         hetsim_msgs::StackStatus::default()
@@ -102,7 +106,7 @@ fn run_sequence(frames: usize, lines: bool, truth_in_inbox: bool) -> Sequence {
         if truth_in_inbox {
             inbox.insert(0, SensorMsg::TruthPose(PoseStamped { stamp_ns, pose: b }));
         }
-        stack.step(stamp_ns, &inbox);
+        stack.step(stamp_ns, &inbox).expect("valid rendered frames");
         last_depth = f[0].depth().to_vec();
     }
     // The stack estimates in its own frame, its pose at the first pair; the test places that

@@ -40,8 +40,8 @@ use crate::team::{Order, TeamMsg};
 use crate::visibility::line_of_sight;
 use crate::{plan, CoverageParams, Direction, Plan};
 use hetsim_msgs::{
-    Artifact, Command, CoverageMission, Mission, Outgoing, Pose, PoseStamped, RobotStack,
-    SensorMsg, StackStatus,
+    Artifact, Command, CoverageMission, InboxGuard, InputError, Mission, Outgoing, Pose,
+    PoseStamped, RobotStack, SensorMsg, StackStatus,
 };
 use hetsim_pilot::{GroundPilot, GroundPilotParams};
 
@@ -131,6 +131,8 @@ struct Child {
 
 /// The parent's software.
 pub struct ParentStack {
+    /// The boundary checks of what the stack is fed (stamp order per sensor).
+    guard: InboxGuard,
     params: ParentParams,
     mission: CoverageMission,
     coverage: CoverageParams,
@@ -216,6 +218,7 @@ impl ParentStack {
             })
             .collect();
         Self {
+            guard: InboxGuard::new(),
             params,
             map: Map::from_grid(&mission.grid),
             mission,
@@ -389,8 +392,10 @@ impl ParentStack {
     }
 }
 
-impl RobotStack for ParentStack {
-    fn step(&mut self, now_ns: u64, inbox: &[SensorMsg]) -> Command {
+impl ParentStack {
+    /// The command for one step's messages, once the boundary has checked them
+    /// ([`RobotStack::step`] checks, then calls this).
+    pub fn command(&mut self, now_ns: u64, inbox: &[SensorMsg]) -> Command {
         self.now_ns = now_ns;
         for msg in inbox {
             match msg {
@@ -451,7 +456,7 @@ impl RobotStack for ParentStack {
         let Some(pilot) = self.pilot.as_mut() else {
             return Command::Stop;
         };
-        let cmd = pilot.step(
+        let cmd = pilot.command(
             now_ns,
             &[SensorMsg::TruthPose(PoseStamped {
                 stamp_ns: now_ns,
@@ -463,6 +468,13 @@ impl RobotStack for ParentStack {
             return Command::Stop;
         }
         cmd
+    }
+}
+
+impl RobotStack for ParentStack {
+    fn step(&mut self, now_ns: u64, inbox: &[SensorMsg]) -> Result<Command, InputError> {
+        self.guard.check(now_ns, inbox)?;
+        Ok(self.command(now_ns, inbox))
     }
 
     fn status(&self) -> StackStatus {

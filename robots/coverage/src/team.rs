@@ -16,7 +16,8 @@
 //! older than the one it is executing. The parent repeats an order until it hears back.
 
 use hetsim_msgs::{
-    wrap_angle, Command, Image, Mission, Outgoing, RobotStack, SensorMsg, StackStatus,
+    wrap_angle, Command, Image, InboxGuard, InputError, Mission, Outgoing, RobotStack, SensorMsg,
+    StackStatus,
 };
 use serde::{Deserialize, Serialize};
 
@@ -140,6 +141,8 @@ enum Phase {
 
 /// A child robot's software: obeys the parent's orders.
 pub struct ChildStack {
+    /// The boundary checks of what the stack is fed (stamp order per sensor).
+    guard: InboxGuard,
     params: ChildParams,
     parent: String,
     seq: Option<u32>,
@@ -162,6 +165,7 @@ impl ChildStack {
             _ => String::new(),
         };
         Self {
+            guard: InboxGuard::new(),
             params,
             parent,
             seq: None,
@@ -238,8 +242,10 @@ fn accumulate(sum: (f64, f64), heading: f64) -> (f64, f64) {
     (sum.0 + heading.cos(), sum.1 + heading.sin())
 }
 
-impl RobotStack for ChildStack {
-    fn step(&mut self, now_ns: u64, inbox: &[SensorMsg]) -> Command {
+impl ChildStack {
+    /// The command for one step's messages, once the boundary has checked them
+    /// ([`RobotStack::step`] checks, then calls this).
+    pub fn command(&mut self, now_ns: u64, inbox: &[SensorMsg]) -> Command {
         let mut image: Option<&Image> = None;
         let mut driven = 0.0;
         for msg in inbox {
@@ -368,6 +374,13 @@ impl RobotStack for ChildStack {
             }
         }
     }
+}
+
+impl RobotStack for ChildStack {
+    fn step(&mut self, now_ns: u64, inbox: &[SensorMsg]) -> Result<Command, InputError> {
+        self.guard.check(now_ns, inbox)?;
+        Ok(self.command(now_ns, inbox))
+    }
 
     fn status(&self) -> StackStatus {
         StackStatus {
@@ -420,6 +433,11 @@ mod tests {
         })
     }
 
+    /// A step whose messages the boundary accepts.
+    fn step(c: &mut ChildStack, now_ns: u64, inbox: &[SensorMsg]) -> Command {
+        c.step(now_ns, inbox).expect("valid messages")
+    }
+
     fn replies(c: &mut ChildStack) -> Vec<TeamMsg> {
         c.outbox()
             .iter()
@@ -430,7 +448,8 @@ mod tests {
     #[test]
     fn a_drive_turns_by_compass_then_stops_after_the_encoder_distance() {
         let mut c = child();
-        let cmd = c.step(
+        let cmd = step(
+            &mut c,
             0,
             &[
                 compass(0.0),
@@ -454,7 +473,7 @@ mod tests {
         };
         assert!(right_mps > 0.0 && left_mps < 0.0);
         // Aligned: stop once, then drive straight.
-        assert_eq!(c.step(1, &[compass(0.99)]), Command::Stop);
+        assert_eq!(step(&mut c, 1, &[compass(0.99)]), Command::Stop);
         let odo = |m: f64| {
             SensorMsg::WheelOdometry(WheelOdometry {
                 stamp_ns: 0,
@@ -468,7 +487,7 @@ mod tests {
         let Command::Wheels {
             left_mps,
             right_mps,
-        } = c.step(2, &[odo(0.1)])
+        } = step(&mut c, 2, &[odo(0.1)])
         else {
             panic!()
         };
@@ -476,12 +495,12 @@ mod tests {
         let Command::Wheels {
             left_mps,
             right_mps,
-        } = c.step(3, &[odo(0.15), compass(1.01)])
+        } = step(&mut c, 3, &[odo(0.15), compass(1.01)])
         else {
             panic!()
         };
         assert!((left_mps + right_mps - 0.3).abs() < 1e-12 && left_mps > right_mps);
-        assert_eq!(c.step(4, &[odo(0.06)]), Command::Stop);
+        assert_eq!(step(&mut c, 4, &[odo(0.06)]), Command::Stop);
         let r = replies(&mut c);
         assert!(
             matches!(r[..], [TeamMsg::Done { seq: 1, driven_m, heading_rad }] if (driven_m - 0.31).abs() < 1e-9 && (heading_rad - 1.01).abs() < 1e-9),
@@ -490,7 +509,8 @@ mod tests {
         // The order again (the parent missed the reply): acknowledged and answered again,
         // not driven again.
         assert_eq!(
-            c.step(
+            step(
+                &mut c,
                 5,
                 &[order(
                     1,
@@ -504,7 +524,8 @@ mod tests {
         );
         assert_eq!(replies(&mut c).len(), 2);
         // An older order is ignored.
-        c.step(
+        step(
+            &mut c,
             6,
             &[order(
                 0,
@@ -520,7 +541,8 @@ mod tests {
     #[test]
     fn a_grab_waits_for_an_image_taken_after_settling() {
         let mut c = child();
-        c.step(
+        step(
+            &mut c,
             0,
             &[
                 compass(0.02),
@@ -534,7 +556,7 @@ mod tests {
             ],
         );
         assert!(!c.status().wants_images || c.phase != Phase::Idle);
-        c.step(10, &[compass(0.01)]);
+        step(&mut c, 10, &[compass(0.01)]);
         assert!(c.status().wants_images);
         let img = |stamp_ns| {
             SensorMsg::Image(Image {
@@ -545,11 +567,11 @@ mod tests {
                 rgb: vec![1, 2, 3],
             })
         };
-        c.step(100_000_000, &[img(100_000_000)]);
+        step(&mut c, 100_000_000, &[img(100_000_000)]);
         assert!(replies(&mut c)
             .iter()
             .all(|m| matches!(m, TeamMsg::Ack { .. })));
-        c.step(500_000_000, &[img(500_000_000)]);
+        step(&mut c, 500_000_000, &[img(500_000_000)]);
         let r = replies(&mut c);
         assert!(
             matches!(&r[..], [TeamMsg::Grabbed { seq: 3, vertex: (4, 2), image, .. }] if image.stamp_ns == 500_000_000),

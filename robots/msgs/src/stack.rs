@@ -1,6 +1,6 @@
 //! The interface every robot stack implements, and what a stack publishes at the end of a run.
 
-use crate::{Command, Outgoing, Pose, SensorMsg};
+use crate::{Command, InputError, Outgoing, Pose, SensorMsg};
 use serde::{Deserialize, Serialize};
 
 /// How far a stack has got with its mission, and what it wants from the simulator now.
@@ -108,8 +108,11 @@ impl Artifact {
 /// has seen: no clock, no ambient randomness, no ground truth beyond the oracle sensors its
 /// robot file declares.
 pub trait RobotStack: Send {
-    /// Turns the messages received since the last call into a command.
-    fn step(&mut self, now_ns: u64, inbox: &[SensorMsg]) -> Command;
+    /// Turns the messages received since the last call into a command. A stack checks what it
+    /// is fed first ([`crate::InboxGuard`], and what only it knows, such as its cameras'
+    /// sizes) and refuses a bad message with an [`InputError`], before it computes anything
+    /// on it; the caller stops there.
+    fn step(&mut self, now_ns: u64, inbox: &[SensorMsg]) -> Result<Command, InputError>;
 
     /// Progress with the mission, and what the stack wants now (read after every step).
     fn status(&self) -> StackStatus;

@@ -1,7 +1,10 @@
 //! Waypoint following for skid-steer and differential-drive bases.
 
 use crate::grid_path;
-use hetsim_msgs::{wrap_angle, yaw_of, Command, Mission, Pose, RobotStack, SensorMsg, StackStatus};
+use hetsim_msgs::{
+    wrap_angle, yaw_of, Command, InboxGuard, InputError, Mission, Pose, RobotStack, SensorMsg,
+    StackStatus,
+};
 
 /// How a ground pilot steers towards its next waypoint.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -56,6 +59,8 @@ enum Phase {
 /// A ground robot's waypoint follower, driven by pose messages.
 #[derive(Clone, Debug)]
 pub struct GroundPilot {
+    /// The boundary checks of what the stack is fed (stamp order per sensor).
+    guard: InboxGuard,
     params: GroundPilotParams,
     mission: Mission,
     waypoints: Option<Vec<Waypoint>>,
@@ -74,6 +79,7 @@ impl GroundPilot {
             Mission::Idle | Mission::CoverageParent(_) | Mission::Teleoperated { .. } => 0,
         };
         Self {
+            guard: InboxGuard::new(),
             params,
             mission,
             waypoints: None,
@@ -167,8 +173,10 @@ impl GroundPilot {
     }
 }
 
-impl RobotStack for GroundPilot {
-    fn step(&mut self, _now_ns: u64, inbox: &[SensorMsg]) -> Command {
+impl GroundPilot {
+    /// The command for one step's messages, once the boundary has checked them
+    /// ([`RobotStack::step`] checks, then calls this).
+    pub fn command(&mut self, _now_ns: u64, inbox: &[SensorMsg]) -> Command {
         for msg in inbox {
             if let SensorMsg::TruthPose(p) = msg {
                 self.pose = Some(p.pose);
@@ -194,7 +202,7 @@ impl RobotStack for GroundPilot {
         let error = wrap_angle(dy.atan2(dx) - yaw);
         if distance < self.params.arrive_m {
             self.advance(target);
-            return self.step(_now_ns, &[]);
+            return self.command(_now_ns, &[]);
         }
         match self.params.steering {
             Steering::Smooth { turn_in_place_rad } => {
@@ -224,7 +232,7 @@ impl RobotStack for GroundPilot {
                     let along = dx * yaw.cos() + dy * yaw.sin();
                     if along <= 0.0 && reaimed {
                         self.advance(target);
-                        return self.step(_now_ns, &[]);
+                        return self.command(_now_ns, &[]);
                     }
                     if !reaimed && distance < reaim_m {
                         self.phase = if error.abs() > aim_tolerance_rad {
@@ -240,6 +248,13 @@ impl RobotStack for GroundPilot {
                 }
             },
         }
+    }
+}
+
+impl RobotStack for GroundPilot {
+    fn step(&mut self, now_ns: u64, inbox: &[SensorMsg]) -> Result<Command, InputError> {
+        self.guard.check(now_ns, inbox)?;
+        Ok(self.command(now_ns, inbox))
     }
 
     fn status(&self) -> StackStatus {
@@ -278,7 +293,10 @@ mod tests {
                 stamp_ns: k as u64 * 10_000_000,
                 pose: pose_from_xyz_rpy([x, y, 0.0], [0.0, 0.0, yaw]),
             });
-            let (l, r) = match pilot.step(0, &[msg]) {
+            let (l, r) = match pilot
+                .step(k as u64 * 10_000_000, &[msg])
+                .expect("valid poses")
+            {
                 Command::Wheels {
                     left_mps,
                     right_mps,

@@ -1,6 +1,8 @@
 //! Helicopter route following: position -> velocity -> attitude cascade.
 
-use hetsim_msgs::{wrap_angle, yaw_of, Command, Pose, RobotStack, SensorMsg, StackStatus};
+use hetsim_msgs::{
+    wrap_angle, yaw_of, Command, InboxGuard, InputError, Pose, RobotStack, SensorMsg, StackStatus,
+};
 use nalgebra::Vector3;
 
 /// Parameters of a [`HeliPilot`].
@@ -23,6 +25,8 @@ pub struct HeliPilotParams {
 /// Follows a list of 3D waypoints, facing the direction of travel.
 #[derive(Clone, Debug)]
 pub struct HeliPilot {
+    /// The boundary checks of what the stack is fed (stamp order per sensor).
+    guard: InboxGuard,
     params: HeliPilotParams,
     route: Vec<[f64; 3]>,
     next: usize,
@@ -34,6 +38,7 @@ impl HeliPilot {
     /// A pilot for a route.
     pub fn new(params: HeliPilotParams, route: Vec<[f64; 3]>) -> Self {
         Self {
+            guard: InboxGuard::new(),
             params,
             route,
             next: 0,
@@ -43,8 +48,10 @@ impl HeliPilot {
     }
 }
 
-impl RobotStack for HeliPilot {
-    fn step(&mut self, _now_ns: u64, inbox: &[SensorMsg]) -> Command {
+impl HeliPilot {
+    /// The command for one step's messages, once the boundary has checked them
+    /// ([`RobotStack::step`] checks, then calls this).
+    pub fn command(&mut self, _now_ns: u64, inbox: &[SensorMsg]) -> Command {
         for msg in inbox {
             let SensorMsg::TruthPose(p) = msg else {
                 continue;
@@ -84,6 +91,13 @@ impl RobotStack for HeliPilot {
         let climb = (0.5 * error.z).clamp(-self.params.max_climb_mps, self.params.max_climb_mps);
         let heading = (distance > 5.0).then(|| error.y.atan2(error.x));
         self.hold(&pose, velocity_wanted, climb, heading)
+    }
+}
+
+impl RobotStack for HeliPilot {
+    fn step(&mut self, now_ns: u64, inbox: &[SensorMsg]) -> Result<Command, InputError> {
+        self.guard.check(now_ns, inbox)?;
+        Ok(self.command(now_ns, inbox))
     }
 
     fn status(&self) -> StackStatus {

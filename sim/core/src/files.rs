@@ -51,9 +51,7 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), FileError> {
         use std::os::unix::fs::PermissionsExt;
         builder.permissions(std::fs::Permissions::from_mode(0o644));
     }
-    let mut tmp = builder
-        .tempfile_in(dir)
-        .map_err(FileError::at(dir))?;
+    let mut tmp = builder.tempfile_in(dir).map_err(FileError::at(dir))?;
     tmp.write_all(bytes).map_err(FileError::at(path))?;
     tmp.as_file().sync_all().map_err(FileError::at(path))?;
     tmp.persist(path).map_err(|e| FileError {
@@ -121,7 +119,11 @@ mod tests {
         write_atomic(&atomic, b"{}").unwrap();
         std::fs::write(&plain, b"{}").unwrap();
         let mode = |p: &Path| std::fs::metadata(p).unwrap().permissions().mode() & 0o777;
-        assert_eq!(mode(&atomic), mode(&plain), "not the temporary file's private 0600");
+        assert_eq!(
+            mode(&atomic),
+            mode(&plain),
+            "not the temporary file's private 0600"
+        );
     }
 
     use super::*;

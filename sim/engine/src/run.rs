@@ -6,7 +6,9 @@ use crate::frames::{FrameDump, ImuSpec};
 use crate::output::{RobotOutcome, RunOutput};
 use crate::record::Recorder;
 use hetsim_core::{PayloadHasher, RunDigest, Streams};
-use hetsim_msgs::{pose_from_xyz_rpy, Command, Pose, PoseStamped, RobotStack, SensorMsg};
+use hetsim_msgs::{
+    pose_from_xyz_rpy, Command, InputError, Pose, PoseStamped, RobotStack, SensorMsg,
+};
 use hetsim_physics::Physics;
 use hetsim_render::{RenderError, RenderOptions};
 use hetsim_scene::Scenario;
@@ -59,6 +61,14 @@ pub enum RunError {
     /// Frames could not be written.
     #[error("writing frames: {0}")]
     Frames(#[from] crate::frames::FrameError),
+    /// A robot's software refused a message it was fed.
+    #[error("robot {robot} refused a message: {error}")]
+    Input {
+        /// The robot.
+        robot: String,
+        /// What it refused.
+        error: Box<InputError>,
+    },
     /// The caller gave a stack count that is not the robot count.
     #[error("{stacks} robot stacks for {robots} robots")]
     Stacks {
@@ -253,7 +263,7 @@ fn run_on_worker(
         ticks = tick + 1;
         let now = clock.time_ns(tick);
         // 1. stacks -> commands (in parallel; collected in robot order)
-        let commands: Vec<Command> = stacks
+        let results: Vec<Result<Command, InputError>> = stacks
             .par_iter_mut()
             .zip(post.inboxes.par_iter_mut())
             .map(|(stack, inbox)| {
@@ -262,6 +272,14 @@ fn run_on_worker(
                 cmd
             })
             .collect();
+        // A message a stack refused stops the run: the first refusal in robot order.
+        let mut commands = Vec::with_capacity(n);
+        for (i, r) in results.into_iter().enumerate() {
+            commands.push(r.map_err(|error| RunError::Input {
+                robot: names[i].clone(),
+                error: Box::new(error),
+            })?);
+        }
         let statuses: Vec<_> = stacks.iter().map(|s| s.status()).collect();
         // Oracle: key frames the stacks made, with the true pose then, for the emulated
         // image matcher (the manifest lists it).

@@ -22,7 +22,10 @@
 
 use super::{Event, SlamCore, SlamParams};
 use crate::report::SlamReport;
-use hetsim_msgs::{Artifact, Command, Image, Outgoing, Pose, RobotStack, SensorMsg, StackStatus};
+use hetsim_msgs::{
+    Artifact, Command, Image, InboxGuard, InputError, Outgoing, Pose, RobotStack, SensorMsg,
+    StackStatus,
+};
 use hetsim_vision::stereo::Bench;
 use std::sync::mpsc::{channel, Receiver, Sender};
 use std::sync::Mutex;
@@ -98,6 +101,10 @@ impl Held {
 
 /// SLAM for one robot beside its pilot (see the module docs of [`crate::stack`]).
 pub struct SlamStack {
+    /// The boundary checks of what the stack is fed (stamp order per sensor).
+    guard: InboxGuard,
+    /// The size of the bench's images, from its first pair: every later image must match.
+    image_size: Option<(u32, u32)>,
     inner: Box<dyn RobotStack>,
     robot: String,
     left: String,
@@ -122,6 +129,8 @@ impl SlamStack {
     ) -> Self {
         let core = SlamCore::new(robot, bench, body_from_camera, params, seed);
         Self {
+            guard: InboxGuard::new(),
+            image_size: None,
             inner,
             robot: robot.to_string(),
             left: format!("{stereo}/left"),
@@ -250,8 +259,56 @@ fn stop_panicked(worker: JoinHandle<Box<SlamCore>>) -> Box<dyn std::any::Any + S
     }
 }
 
+impl SlamStack {
+    /// The bench's images: all of one size (the first image's), at least
+    /// [`MIN_IMAGE_SIDE`] pixels each way, so the VO's windows fit.
+    fn check_images(&mut self, inbox: &[SensorMsg]) -> Result<(), InputError> {
+        for msg in inbox {
+            let SensorMsg::Image(img) = msg else {
+                continue;
+            };
+            if img.sensor != self.left && img.sensor != self.right {
+                continue;
+            }
+            let size = (img.width, img.height);
+            if size.0 < MIN_IMAGE_SIDE || size.1 < MIN_IMAGE_SIDE {
+                return Err(InputError::of(
+                    msg,
+                    "width x height",
+                    format!("{} x {}", size.0, size.1),
+                    &format!(
+                        "at least {MIN_IMAGE_SIDE} x {MIN_IMAGE_SIDE} pixels for the stereo VO"
+                    ),
+                ));
+            }
+            match self.image_size {
+                None => self.image_size = Some(size),
+                Some(first) if first != size => {
+                    return Err(InputError::of(
+                        msg,
+                        "width x height",
+                        format!("{} x {}", size.0, size.1),
+                        &format!(
+                            "the bench's size, {} x {} (its first image)",
+                            first.0, first.1
+                        ),
+                    ))
+                }
+                Some(_) => {}
+            }
+        }
+        Ok(())
+    }
+}
+
+/// The smallest image side the stereo VO takes, pixels: its Harris and correlation windows
+/// and search margins need room.
+pub const MIN_IMAGE_SIDE: u32 = 64;
+
 impl RobotStack for SlamStack {
-    fn step(&mut self, now_ns: u64, inbox: &[SensorMsg]) -> Command {
+    fn step(&mut self, now_ns: u64, inbox: &[SensorMsg]) -> Result<Command, InputError> {
+        self.guard.check(now_ns, inbox)?;
+        self.check_images(inbox)?;
         let mut paired = false;
         let queue = &mut self.held.get_mut().expect("never poisoned").queue;
         for msg in inbox {
