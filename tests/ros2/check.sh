@@ -17,11 +17,12 @@ if ! "$venv/bin/python" -c "import mcap_ros2, rosbags" 2>/dev/null; then
         mcap==1.6.0 mcap-ros2-support==0.6.0 rosbags==0.11.9
 fi
 cargo build --release -q -p hetsim-cli
+hetsim="${CARGO_TARGET_DIR:-target}/release/hetsim"
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
-./target/release/hetsim run scenarios/lab.toml --duration 10 --no-render \
+"$hetsim" run scenarios/lab.toml --duration 10 --no-render \
     --record "$tmp/lab.mcap" --out "$tmp/lab" >/dev/null
 "$venv/bin/python" tests/ros2/check_mcap.py "$tmp/lab.mcap" "$tmp/lab"
-./target/release/hetsim run scenarios/village-short.toml --duration 2 \
+"$hetsim" run scenarios/village-short.toml --duration 2 \
     --record "$tmp/village.mcap" --out "$tmp/village" >/dev/null
 "$venv/bin/python" tests/ros2/check_mcap.py "$tmp/village.mcap" "$tmp/village"

@@ -10,6 +10,7 @@ hetsim's own code, and checks it against the run's metrics.json.
   layouts, not only our definitions of them), hetsim_msgs with the definitions in the file.
 - The two decodings agree on header stamps, and each topic holds exactly the number of
   messages the run delivered (metrics.json `messages`).
+- Every channel offers its QoS as rosbag2 reads it (`/tf_static` transient local).
 
 Prints one line per topic and `ros2-mcap: N passed, 0 failed`; exits 1 on any mismatch.
 """
@@ -20,6 +21,7 @@ from collections import Counter
 from pathlib import Path
 
 from mcap.reader import make_reader
+from ruamel.yaml import YAML
 from mcap_ros2.decoder import DecoderFactory
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
@@ -47,6 +49,11 @@ def main() -> int:
         for channel in summary.channels.values():
             if channel.message_encoding != "cdr":
                 failures.append(f"{channel.topic}: message encoding {channel.message_encoding}")
+            # The profile's required channel metadata, as rosbag2 parses it.
+            qos = YAML(typ="safe").load(channel.metadata.get("offered_qos_profiles", "") or "[]")
+            latched = channel.topic == "/tf_static"
+            if not (isinstance(qos, list) and qos and qos[0].get("durability") == (1 if latched else 2)):
+                failures.append(f"{channel.topic}: offered_qos_profiles {qos!r}")
         for schema, channel, message, foxglove in reader.iter_decoded_messages():
             counts[channel.topic] += 1
             ros = store.deserialize_cdr(message.data, schema.name)

@@ -17,16 +17,26 @@ usage() { echo "usage: $0 start|stop DIR" >&2; exit 2; }
 action=$1
 dir=$(mkdir -p "$2" && cd "$2" && pwd)
 
+# The pid in DIR/<daemon>.pid, if that process is still this cluster's daemon (its command
+# line names DIR's slurm.conf): a stale pid file never kills someone else's process.
+ours() {
+    local pid
+    [ -f "$dir/$1.pid" ] || return 1
+    pid=$(cat "$dir/$1.pid")
+    [ -n "$pid" ] && tr '\0' ' ' < "/proc/$pid/cmdline" 2>/dev/null | grep -q -- "$dir/slurm.conf" || return 1
+    echo "$pid"
+}
+
 stop() {
     for d in slurmd slurmctld; do
-        if [ -f "$dir/$d.pid" ]; then
-            kill "$(cat "$dir/$d.pid")" 2>/dev/null || true
+        if pid=$(ours $d); then
+            kill "$pid" 2>/dev/null || true
         fi
     done
     for _ in $(seq 50); do
         alive=0
         for d in slurmd slurmctld; do
-            if [ -f "$dir/$d.pid" ] && kill -0 "$(cat "$dir/$d.pid")" 2>/dev/null; then alive=1; fi
+            if ours $d >/dev/null; then alive=1; fi
         done
         [ $alive = 0 ] && break
         sleep 0.2
@@ -67,6 +77,14 @@ fi
 
 node=$(hostname -s)
 cpus=$(nproc)
+# Two free TCP ports, so a cluster already running on this machine (Slurm's default 6817/6818,
+# or another test's) is neither used by mistake nor disturbed.
+listening() { ss -Htln "sport = :$1" 2>/dev/null | grep -q . ; }
+port=""
+for p in $(seq 16817 10 17807); do
+    if ! listening "$p" && ! listening $((p + 1)); then port=$p; break; fi
+done
+[ -n "$port" ] || { echo "cluster.sh: no two free TCP ports in 16817-17808" >&2; exit 1; }
 mkdir -p "$dir/state" "$dir/spool" "$dir/log"
 cat > "$dir/slurm.conf" <<CONF
 ClusterName=hetsim-test
@@ -81,8 +99,8 @@ SlurmctldPidFile=$dir/slurmctld.pid
 SlurmdPidFile=$dir/slurmd.pid
 SlurmctldLogFile=$dir/log/slurmctld.log
 SlurmdLogFile=$dir/log/slurmd.log
-SlurmctldPort=6817
-SlurmdPort=6818
+SlurmctldPort=$port
+SlurmdPort=$((port + 1))
 ProctrackType=proctrack/linuxproc
 TaskPlugin=task/none
 SelectType=select/cons_tres
@@ -103,10 +121,14 @@ rm -rf "$dir/state"/* "$dir/spool"/*
 slurmctld -c -f "$SLURM_CONF"
 slurmd -c -f "$SLURM_CONF"
 for _ in $(seq 150); do
-    state=$(sinfo -h -n "$node" -o %T 2>/dev/null || true)
-    case "$state" in
-    idle*) echo "cluster.sh: node $node idle; export SLURM_CONF=$SLURM_CONF"; exit 0 ;;
-    esac
+    # Our own daemons, alive, and the controller that answers is ours (its state folder).
+    if ours slurmctld >/dev/null && ours slurmd >/dev/null \
+        && scontrol show config 2>/dev/null | grep -q "StateSaveLocation *= *$dir/state"; then
+        state=$(sinfo -h -n "$node" -o %T 2>/dev/null || true)
+        case "$state" in
+        idle*) echo "cluster.sh: node $node idle (ports $port, $((port + 1))); export SLURM_CONF=$SLURM_CONF"; exit 0 ;;
+        esac
+    fi
     sleep 0.2
 done
 echo "cluster.sh: node $node did not become idle (state: ${state:-none}); logs in $dir/log" >&2

@@ -175,6 +175,8 @@ type Topic = (String, String, String, Vec<(u64, Vec<u8>)>);
 struct Recorded {
     profile: String,
     topics: BTreeMap<String, Topic>,
+    /// Each topic's `offered_qos_profiles` channel metadata.
+    qos: BTreeMap<String, String>,
 }
 
 fn record(scenario: &Scenario, render: bool) -> (Recorded, hetsim_engine::RunOutput) {
@@ -199,6 +201,7 @@ fn record(scenario: &Scenario, render: bool) -> (Recorded, hetsim_engine::RunOut
         })
         .unwrap();
     let mut topics: BTreeMap<String, Topic> = BTreeMap::new();
+    let mut qos = BTreeMap::new();
     for m in mcap::MessageStream::new(&bytes).unwrap() {
         let m = m.unwrap();
         let schema = m
@@ -215,11 +218,15 @@ fn record(scenario: &Scenario, render: bool) -> (Recorded, hetsim_engine::RunOut
             )
         });
         entry.3.push((m.log_time, m.data.to_vec()));
+        if let Some(q) = m.channel.metadata.get("offered_qos_profiles") {
+            qos.insert(m.channel.topic.clone(), q.clone());
+        }
     }
     (
         Recorded {
             profile: header.profile,
             topics,
+            qos,
         },
         result,
     )
@@ -255,6 +262,20 @@ fn a_ros2_recording_of_the_lab_decodes_with_exact_counts() {
     .unwrap();
     let (r, result) = record(&s, false);
     assert_eq!(r.profile, "ros2");
+    // The ROS 2 profile's required channel metadata: every topic offers its QoS, /tf_static
+    // latched (durability 1, transient local) and the rest volatile (2), all reliable.
+    assert_eq!(r.qos.len(), r.topics.len());
+    for (topic, q) in &r.qos {
+        let durability = if topic == "/tf_static" {
+            "durability: 1"
+        } else {
+            "durability: 2"
+        };
+        assert!(
+            q.contains(durability) && q.contains("reliability: 1"),
+            "{topic}: {q}"
+        );
+    }
     // Every message the robots received is recorded once on its topic.
     for (topic, n) in &result.messages {
         if !topic.ends_with("/truth") && !topic.ends_with("/radio") {

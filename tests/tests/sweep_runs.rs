@@ -279,3 +279,65 @@ fn whole_run_sweeps_refuse_bad_metrics_and_axes_with_the_place() {
         );
     }
 }
+
+#[test]
+fn a_folder_of_another_sweep_is_never_resumed_or_merged_into() {
+    let tmp = tempfile::tempdir().unwrap();
+    let write = |values: &str| {
+        let path = tmp.path().join("s.toml");
+        std::fs::write(
+            &path,
+            format!(
+                "schema_version = 1\nname = \"s\"\nkind = \"run\"\nbase = \"{}\"\nseeds = 1\nduration_secs = 30.0\nrender = false\nmetrics = [\"comms.sent\"]\n[axes]\n\"models.ctbot.sensors.compass.sigma_deg\" = [{values}]\n",
+                repo().join("scenarios/lab.toml").display()
+            ),
+        )
+        .unwrap();
+        path
+    };
+    let out = tmp.path().join("o");
+    let file = write("2.0, 7.0");
+    sweep(&[file.to_str().unwrap(), "--out", out.to_str().unwrap()]);
+    let rows_before = std::fs::read(out.join("runs.csv")).unwrap();
+    // The same file with another axis value: its rows would be reported under the new labels.
+    let file = write("2.0, 8.0");
+    let again = hetsim(
+        &[
+            "sweep",
+            file.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ],
+        &[],
+    );
+    let err = String::from_utf8_lossy(&again.stderr);
+    assert!(!again.status.success(), "{err}");
+    assert!(
+        err.contains("another sweep") && err.contains("axes") && err.contains("s.toml"),
+        "{err}"
+    );
+    assert_eq!(
+        std::fs::read(out.join("runs.csv")).unwrap(),
+        rows_before,
+        "nothing rewritten"
+    );
+    // Nor merged: the first sweep's folder as a shard of the second.
+    let merged = tmp.path().join("m");
+    let m = hetsim(
+        &[
+            "sweep",
+            "merge",
+            file.to_str().unwrap(),
+            out.to_str().unwrap(),
+            "--out",
+            merged.to_str().unwrap(),
+        ],
+        &[],
+    );
+    let err = String::from_utf8_lossy(&m.stderr);
+    assert!(
+        !m.status.success() && err.contains("another sweep") && err.contains("axes"),
+        "{err}"
+    );
+    assert!(!merged.join("runs.csv").exists());
+}

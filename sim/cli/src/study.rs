@@ -149,8 +149,10 @@ pub fn sweep(args: SweepArgs) -> Result<()> {
         if args.submit {
             let (array, merge) = crate::slurm::submit(&scripts)?;
             println!("submitted: array job {array}, merge job {merge} (afterok:{array})");
+            println!("results, once the merge job ends: {}", out.display());
+        } else {
+            println!("results, once submit.sh's jobs end: {}", out.display());
         }
-        println!("results: {}", out.display());
         return Ok(());
     }
     let summary = if merging {

@@ -14,6 +14,9 @@
 //! | `/<robot>/<imu>` | `sensor_msgs/msg/Imu` (no orientation: `orientation_covariance[0] = -1`) |
 //! | `/<robot>/cmd`, compass, wheel odometry, child tracks, rendezvous, image match, `/<robot>/radio` | `hetsim_msgs/msg/*`, defined in the file |
 //!
+//! Every channel carries `offered_qos_profiles` as rosbag2 writes it (reliable, volatile;
+//! `/tf_static` transient-local, so a player latches it).
+//!
 //! `--record-encoding json` writes the earlier JSON encoding instead (Foxglove's JSON schemas,
 //! images as base64 PNG; see `record/json.rs`).
 //!
@@ -152,9 +155,16 @@ impl Recorder {
             RecordEncoding::Ros2 => "cdr",
             RecordEncoding::Json => "json",
         };
+        let mut metadata = BTreeMap::new();
+        if self.encoding == RecordEncoding::Ros2 {
+            metadata.insert(
+                "offered_qos_profiles".to_string(),
+                ros2::qos_profiles(topic),
+            );
+        }
         let c = self
             .writer
-            .add_channel(schema_id, topic, message_encoding, &BTreeMap::new())
+            .add_channel(schema_id, topic, message_encoding, &metadata)
             .expect("channel registers");
         self.channels.insert(topic.to_string(), c);
         c

@@ -100,6 +100,16 @@ pub enum SweepError {
         /// The first run without a row.
         first: usize,
     },
+    /// The output folder, or a shard to merge, holds the results of another sweep.
+    #[error("{}: holds the results of another sweep ({what} differ from {sweep}'s); choose another --out, or remove the folder to start again", path.display(), sweep = sweep.display())]
+    Mismatch {
+        /// The folder.
+        path: PathBuf,
+        /// The sweep file.
+        sweep: PathBuf,
+        /// What differs.
+        what: String,
+    },
     /// The worker threads could not be started.
     #[error("starting {jobs} worker threads: {message}")]
     Threads {

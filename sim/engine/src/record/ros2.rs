@@ -336,6 +336,17 @@ pub struct Comms<'a> {
     pub bytes: u32,
 }
 
+/// The channel's `offered_qos_profiles` metadata, in rosbag2's YAML: reliable and volatile,
+/// but transient-local (latched) for `/tf_static`; history, deadline, lifespan and lease left
+/// at rosbag2's "unknown"/infinite values.
+pub fn qos_profiles(topic: &str) -> String {
+    let durability = if topic == "/tf_static" { 1 } else { 2 };
+    let infinite = "\n    sec: 9223372036\n    nsec: 854775807";
+    format!(
+        "- history: 3\n  depth: 0\n  reliability: 1\n  durability: {durability}\n  deadline:{infinite}\n  lifespan:{infinite}\n  liveliness: 1\n  liveliness_lease_duration:{infinite}\n  avoid_ros_namespace_conventions: false"
+    )
+}
+
 /// CDR (little endian, with its encapsulation header) of a message.
 pub fn encode<T: Serialize>(message: &T) -> Vec<u8> {
     // Serializing plain structs into memory fails only on a type CDR cannot hold (an

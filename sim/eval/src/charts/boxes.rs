@@ -58,7 +58,13 @@ fn draw(
                 (a.min(*v), b.max(*v))
             });
         let (lo, hi) = if lo.is_finite() { (lo, hi) } else { (0.0, 1.0) };
-        let pad = ((hi - lo) * 0.08).max(hi.abs().max(1e-9) * 0.02);
+        // A constant metric (every run the same) gets a span around its value, not a
+        // nanoscopic one whose ticks read -0.000000.
+        let pad = if hi - lo > 1e-9 * hi.abs().max(1.0) {
+            (hi - lo) * 0.08
+        } else {
+            (hi.abs() * 0.05).max(0.5)
+        };
         let n = panel.boxes.len().max(1);
         // Enough decimals to tell the ticks apart, and no more.
         let decimals = (2.0 - (hi - lo + 2.0 * pad).log10().floor()).clamp(0.0, 6.0) as usize;
@@ -83,7 +89,7 @@ fn draw(
             })
             .y_label_formatter(&|v| format!("{v:.decimals$}"))
             .x_desc(x_desc)
-            .y_desc(panel.title.rsplit('.').next().unwrap_or(""))
+            .y_desc(y_label(&panel.title))
             .label_style((FONT, 13))
             .axis_desc_style((FONT, 14))
             .draw()?;
@@ -120,4 +126,31 @@ fn draw(
         }
     }
     Ok(())
+}
+
+/// The y axis of a metric's panel: its last key, which carries the unit by hetsim's naming
+/// (`ate_m`, `mission_min`, `heading_error_deg`); a statistic's key (`mean`, `std`) goes
+/// with the key it summarizes (`position_error_m.mean`).
+fn y_label(metric: &str) -> String {
+    let keys: Vec<&str> = metric.split('.').collect();
+    match keys.as_slice() {
+        [.., parent, stat] if ["mean", "std", "min", "max", "median"].contains(stat) => {
+            format!("{parent} ({stat})")
+        }
+        [.., last] => last.to_string(),
+        [] => String::new(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn a_statistic_is_labelled_with_the_key_it_summarizes() {
+        assert_eq!(super::y_label("estimates.vo/ressac.ate_m"), "ate_m");
+        assert_eq!(
+            super::y_label("team.position_error_m.mean"),
+            "position_error_m (mean)"
+        );
+        assert_eq!(super::y_label("comms.sent"), "sent");
+    }
 }

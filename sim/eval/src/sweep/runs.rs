@@ -194,6 +194,82 @@ fn row_path(out: &Path, run: &SweepRun) -> PathBuf {
     out.join("rows").join(format!("{:06}.csv", run.index))
 }
 
+impl Sweep {
+    /// What makes two runs of this sweep the same run: the kind, the base scenario's and
+    /// robot files' contents, the axes, seeds, metrics, duration and rendering. Written to
+    /// the output folder as `identity.json`; a folder (or shard) with another identity is
+    /// never resumed into or merged, so no row of another sweep is ever reported under this
+    /// sweep's labels. Contents, not paths: shards made from checkouts in other folders merge.
+    pub fn identity(&self) -> Result<serde_json::Value, SweepError> {
+        use sha2::{Digest, Sha256};
+        let hex = |bytes: &[u8]| -> String {
+            Sha256::digest(bytes)
+                .iter()
+                .map(|b| format!("{b:02x}"))
+                .collect()
+        };
+        // The robot files the base scenario reads, by content (the scenario's own entry is
+        // its text with the first run's axis values written in: left out).
+        let first = self.runs.first().map(|r| self.scenario(r)).transpose()?;
+        let robot_files: std::collections::BTreeSet<String> = first
+            .iter()
+            .flat_map(|s| {
+                s.file_hashes
+                    .iter()
+                    .filter(|(path, _)| Path::new(path.as_str()) != s.path)
+                    .map(|(_, h)| h.clone())
+            })
+            .collect();
+        Ok(serde_json::json!({
+            "kind": format!("{:?}", self.file.kind).to_lowercase(),
+            "base_scenario_sha256": hex(self.base_text.as_bytes()),
+            "robot_files": robot_files,
+            "axes": self.file.axes,
+            "seeds": self.file.seeds,
+            "first_seed": self.file.first_seed,
+            "metrics": self.metrics(),
+            "duration_secs": self.file.duration_secs,
+            "render": self.file.render,
+        }))
+    }
+
+    /// Checks that `dir` holds results of this sweep (or nothing yet): its `identity.json`
+    /// equals [`Sweep::identity`]. A folder with rows but no identity is refused too.
+    fn check_identity(&self, dir: &Path, identity: &serde_json::Value) -> Result<(), SweepError> {
+        let path = dir.join("identity.json");
+        let mismatch = |what: String| SweepError::Mismatch {
+            path: dir.to_path_buf(),
+            sweep: self.path.clone(),
+            what,
+        };
+        if !path.is_file() {
+            let has_rows = std::fs::read_dir(dir.join("rows"))
+                .map(|mut d| d.next().is_some())
+                .unwrap_or(false);
+            return if has_rows {
+                Err(mismatch(
+                    "rows without an identity.json (an older or foreign folder)".into(),
+                ))
+            } else {
+                Ok(())
+            };
+        }
+        let theirs: serde_json::Value = serde_json::from_slice(&read(&path)?)
+            .map_err(|e| mismatch(format!("an unreadable identity.json ({e})")))?;
+        if &theirs == identity {
+            return Ok(());
+        }
+        let keys: Vec<String> = identity
+            .as_object()
+            .into_iter()
+            .flatten()
+            .filter(|(k, v)| theirs.get(k.as_str()) != Some(v))
+            .map(|(k, _)| k.clone())
+            .collect();
+        Err(mismatch(format!("its {}", keys.join(", "))))
+    }
+}
+
 /// Runs a planning sweep's pending runs of a shard (see [`run_sweep_with`]). A whole-run
 /// sweep needs the engine: the `hetsim` binary runs those.
 pub fn run_sweep(
@@ -227,6 +303,12 @@ pub fn run_sweep_with(
     progress: &(dyn Fn(usize, usize) + Sync),
     runner: &Runner<'_>,
 ) -> Result<SweepSummary, SweepError> {
+    let identity = sweep.identity()?;
+    sweep.check_identity(out, &identity)?;
+    write_atomic(
+        &out.join("identity.json"),
+        &serde_json::to_vec_pretty(&identity).expect("JSON values serialize"),
+    )?;
     write_atomic(&out.join("sweep.toml"), &read(&sweep.path)?)?;
     remove_stale_partials(&out.join("runs"));
     let mine: Vec<&SweepRun> = sweep
@@ -248,29 +330,27 @@ pub fn run_sweep_with(
             jobs,
             message: e.to_string(),
         })?;
-    let results: Vec<Result<(), SweepError>> = pool.install(|| {
+    // try_for_each: the first failing run stops the sweep (runs already under way finish
+    // and keep their rows), instead of every other run being run first.
+    pool.install(|| {
         use rayon::prelude::*;
-        pending
-            .par_iter()
-            .map(|run| {
-                let r = runner(sweep, run, &Sweep::run_dir(out, run))?;
-                if r.values.len() != sweep.metrics().len() {
-                    return Err(sweep.run_error(
-                        run,
-                        format!(
-                            "{} metric values for {} columns",
-                            r.values.len(),
-                            sweep.metrics().len()
-                        ),
-                    ));
-                }
-                write_atomic(&row_path(out, run), &csv_text([sweep.row(run, &r)]))?;
-                progress(done.fetch_add(1, Ordering::Relaxed) + 1, mine.len());
-                Ok(())
-            })
-            .collect()
-    });
-    results.into_iter().collect::<Result<Vec<()>, _>>()?;
+        pending.par_iter().try_for_each(|run| {
+            let r = runner(sweep, run, &Sweep::run_dir(out, run))?;
+            if r.values.len() != sweep.metrics().len() {
+                return Err(sweep.run_error(
+                    run,
+                    format!(
+                        "{} metric values for {} columns",
+                        r.values.len(),
+                        sweep.metrics().len()
+                    ),
+                ));
+            }
+            write_atomic(&row_path(out, run), &csv_text([sweep.row(run, &r)]))?;
+            progress(done.fetch_add(1, Ordering::Relaxed) + 1, mine.len());
+            Ok(())
+        })
+    })?;
     summarize(sweep, out)
 }
 
@@ -309,6 +389,22 @@ fn copy_tree(from: &Path, to: &Path) -> Result<(), SweepError> {
 /// results folders; then rebuilds the summary there. Every run of the sweep must have a row
 /// in some shard.
 pub fn merge(sweep: &Sweep, out: &Path, shards: &[PathBuf]) -> Result<SweepSummary, SweepError> {
+    let identity = sweep.identity()?;
+    sweep.check_identity(out, &identity)?;
+    for dir in shards {
+        if !dir.join("identity.json").is_file() {
+            return Err(SweepError::Mismatch {
+                path: dir.clone(),
+                sweep: sweep.path.clone(),
+                what: "no identity.json (not a shard of a sweep)".into(),
+            });
+        }
+        sweep.check_identity(dir, &identity)?;
+    }
+    write_atomic(
+        &out.join("identity.json"),
+        &serde_json::to_vec_pretty(&identity).expect("JSON values serialize"),
+    )?;
     for dir in shards {
         let from = dir.join("rows");
         let entries = std::fs::read_dir(&from).map_err(FileError::at(&from))?;
