@@ -398,6 +398,51 @@ fn keep_clear(file: &ScenarioFile, robots: &[ResolvedRobot]) -> KeepClear {
 }
 
 fn check_placement(c: &Checker, robots: &[ResolvedRobot], world: &World) -> Result<(), SceneError> {
+    check_robot_starts(c, robots, world)?;
+    check_team_vertices(c, robots, world)
+}
+
+/// The robots of a coverage team (seed 002) each start on a vertex of their own: the
+/// mission's schedule has one robot per vertex.
+fn check_team_vertices(
+    c: &Checker,
+    robots: &[ResolvedRobot],
+    world: &World,
+) -> Result<(), SceneError> {
+    let Some(indoor) = &world.grid else {
+        return Ok(());
+    };
+    let mut taken: BTreeMap<(usize, usize), usize> = BTreeMap::new();
+    for (i, r) in robots.iter().enumerate() {
+        if !matches!(
+            r.spec.mission,
+            MissionSpec::CoverageParent | MissionSpec::CoverageChild
+        ) {
+            continue;
+        }
+        let (x, y) = (r.spec.start.x, r.spec.start.y);
+        let Some(cell) = indoor.grid.cell_of(x, y) else {
+            continue;
+        };
+        if let Some(j) = taken.insert(cell, i) {
+            return Err(c.error_at(
+                &["robots", &i.to_string(), "start"],
+                format!("x = {x}, y = {y} (vertex {cell:?})"),
+                format!(
+                    "a vertex no other robot of the coverage team starts on ({} starts on it)",
+                    robots[j].spec.name
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
+
+fn check_robot_starts(
+    c: &Checker,
+    robots: &[ResolvedRobot],
+    world: &World,
+) -> Result<(), SceneError> {
     let [hx, hy] = world.half_extent;
     for (i, r) in robots.iter().enumerate() {
         let idx = i.to_string();

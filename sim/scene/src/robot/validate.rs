@@ -9,10 +9,12 @@ impl RobotModel {
     /// bounds sensor rates (a sensor cannot sample faster than once per tick).
     pub fn validate(&self, c: &Checker, dt_secs: f64) -> Result<(), SceneError> {
         let b = &self.body;
-        c.positive(&["body", "length_m"], b.length_m)?;
-        c.positive(&["body", "width_m"], b.width_m)?;
-        c.positive(&["body", "height_m"], b.height_m)?;
-        c.positive(&["body", "mass_kg"], b.mass_kg)?;
+        // Bounded, not only positive: the physics' shapes and sweeps are built from them
+        // (a 1e300 m airframe overflowed parry's heightfield cast).
+        c.range(&["body", "length_m"], b.length_m, 0.01, 50.0)?;
+        c.range(&["body", "width_m"], b.width_m, 0.01, 50.0)?;
+        c.range(&["body", "height_m"], b.height_m, 0.01, 50.0)?;
+        c.range(&["body", "mass_kg"], b.mass_kg, 0.01, 100_000.0)?;
         c.range(&["body", "max_speed_mps"], b.max_speed_mps, 1e-3, 100.0)?;
         c.range(
             &["body", "max_yaw_rate_deg_s"],
