@@ -68,7 +68,7 @@ impl<'a> Checker<'a> {
         if value.is_finite() && value > 0.0 {
             Ok(())
         } else {
-            Err(self.error_at(path, value, "a finite number > 0"))
+            Err(self.error_at(path, number(value), "a finite number > 0"))
         }
     }
 
@@ -77,7 +77,7 @@ impl<'a> Checker<'a> {
         if value.is_finite() && value >= lo && value <= hi {
             Ok(())
         } else {
-            Err(self.error_at(path, value, format!("a number in [{lo}, {hi}]")))
+            Err(self.error_at(path, number(value), format!("a number in [{lo}, {hi}]")))
         }
     }
 
@@ -90,5 +90,28 @@ impl<'a> Checker<'a> {
             }),
             other => other,
         }
+    }
+}
+
+/// A number as an error message shows it: as written for ordinary magnitudes, in exponent
+/// form where the plain decimal would run to hundreds of digits (`1e300`, not 301 of them).
+pub fn number(value: f64) -> String {
+    if value != 0.0 && value.is_finite() && !(1e-6..1e15).contains(&value.abs()) {
+        format!("{value:e}")
+    } else {
+        format!("{value}")
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn numbers_in_messages_stay_short_at_any_magnitude() {
+        assert_eq!(super::number(1e300), "1e300");
+        assert_eq!(super::number(-2.5e-9), "-2.5e-9");
+        assert_eq!(super::number(10_000_000.0), "10000000");
+        assert_eq!(super::number(0.9), "0.9");
+        assert_eq!(super::number(0.0), "0");
+        assert_eq!(super::number(f64::NAN), "NaN");
     }
 }
