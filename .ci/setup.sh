@@ -20,13 +20,13 @@ icds() { ls /usr/share/vulkan/icd.d /etc/vulkan/icd.d 2>/dev/null || true; }
 have_vulkan() { libs | grep 'libvulkan\.so\.1' >/dev/null && icds | grep '\.json$' >/dev/null; }
 have_lavapipe() { icds | grep '^lvp_icd' >/dev/null; }
 have_egl() { libs | grep 'libEGL_mesa\.so' >/dev/null; }
-have_slurm() { command -v slurmctld >/dev/null && command -v slurmd >/dev/null && command -v munged >/dev/null; }
+have_slurm() { command -v slurmctld >/dev/null && command -v slurmd >/dev/null && command -v munged >/dev/null && command -v ss >/dev/null; }
 
 if have_vulkan && have_lavapipe && have_egl && have_slurm; then
     exit 0
 fi
 
-PACKAGES="mesa-vulkan-drivers libvulkan1 libegl1 libegl-mesa0 libgles2 slurm-wlm munge"
+PACKAGES="mesa-vulkan-drivers libvulkan1 libegl1 libegl-mesa0 libgles2 slurm-wlm munge iproute2"
 if command -v apt-get >/dev/null 2>&1 && [ "$(id -u)" = 0 ]; then
     echo "setup: installing Mesa's software rasterizers ($PACKAGES)" >&2
     apt-get update -qq || true

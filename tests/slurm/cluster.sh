@@ -23,7 +23,10 @@ ours() {
     local pid
     [ -f "$dir/$1.pid" ] || return 1
     pid=$(cat "$dir/$1.pid")
-    [ -n "$pid" ] && tr '\0' ' ' < "/proc/$pid/cmdline" 2>/dev/null | grep -q -- "$dir/slurm.conf" || return 1
+    [ -n "$pid" ] || return 1
+    # The process is that daemon (its name) started with this folder's configuration.
+    [ "$(cat "/proc/$pid/comm" 2>/dev/null)" = "$1" ] || return 1
+    tr '\0' ' ' < "/proc/$pid/cmdline" 2>/dev/null | grep -qF -- "-f $dir/slurm.conf" || return 1
     echo "$pid"
 }
 
@@ -33,14 +36,22 @@ stop() {
             kill "$pid" 2>/dev/null || true
         fi
     done
-    for _ in $(seq 50); do
+    for i in $(seq 60); do
         alive=0
         for d in slurmd slurmctld; do
-            if ours $d >/dev/null; then alive=1; fi
+            if pid=$(ours $d); then
+                alive=1
+                # Still there after 10 s: killed.
+                [ "$i" -gt 50 ] && kill -KILL "$pid" 2>/dev/null
+            fi
         done
         [ $alive = 0 ] && break
         sleep 0.2
     done
+    if [ $alive = 1 ]; then
+        echo "cluster.sh: the daemons started in $dir did not stop" >&2
+        return 1
+    fi
     rm -f "$dir/slurmd.pid" "$dir/slurmctld.pid"
 }
 
@@ -50,9 +61,9 @@ start) ;;
 *) usage ;;
 esac
 
-for tool in munged slurmctld slurmd sinfo; do
+for tool in munged slurmctld slurmd sinfo ss; do
     command -v "$tool" >/dev/null 2>&1 || {
-        echo "cluster.sh: $tool not found: install Debian's slurm-wlm and munge (.ci/setup.sh does)" >&2
+        echo "cluster.sh: $tool not found: install Debian's slurm-wlm, munge and iproute2 (.ci/setup.sh does)" >&2
         exit 1
     }
 done
@@ -133,4 +144,5 @@ for _ in $(seq 150); do
 done
 echo "cluster.sh: node $node did not become idle (state: ${state:-none}); logs in $dir/log" >&2
 tail -n 20 "$dir/log/slurmctld.log" "$dir/log/slurmd.log" >&2 || true
+stop || true
 exit 1

@@ -164,8 +164,8 @@ fn number_spans(s: &str) -> Vec<(usize, usize)> {
 }
 
 /// Loads and, when accepted, runs a scenario for 0.3 s: Ok(true) accepted, Ok(false) refused
-/// with an error naming a file.
-fn load_and_run(path: &Path) -> Result<bool, String> {
+/// with an error naming `mutated` (or the scenario, for a robot file's field it overrides).
+fn load_and_run(path: &Path, mutated: &str) -> Result<bool, String> {
     let options = LoadOptions {
         seed: None,
         duration_secs: Some(0.3),
@@ -179,19 +179,28 @@ fn load_and_run(path: &Path) -> Result<bool, String> {
         }
         Err(e) => {
             let text = e.to_string();
-            if !text.contains(".toml") {
-                return Err(format!("a refusal that names no file: {text}"));
+            if !names_file(&text, path, mutated) {
+                return Err(format!(
+                    "a refusal that names neither {mutated} nor the scenario: {text}"
+                ));
             }
             Ok(false)
         }
     }
 }
 
+/// Whether an error message names the mutated file, or the scenario that reads it (a
+/// robot file's field the scenario overrides is reported at the override).
+fn names_file(text: &str, scenario: &Path, mutated: &str) -> bool {
+    let scenario = scenario.file_name().unwrap().to_string_lossy();
+    text.contains(&format!("{mutated}:")) || text.contains(&format!("{scenario}:"))
+}
+
 /// Runs one case on a worker thread with a liveness bound.
-fn bounded(path: PathBuf) -> Result<bool, String> {
+fn bounded(path: PathBuf, mutated: String) -> Result<bool, String> {
     let (tx, rx) = mpsc::channel();
     let worker = std::thread::spawn(move || {
-        let _ = tx.send(load_and_run(&path));
+        let _ = tx.send(load_and_run(&path, &mutated));
     });
     match rx.recv_timeout(Duration::from_secs(20)) {
         Ok(r) => {
@@ -211,10 +220,11 @@ fn bounded(path: PathBuf) -> Result<bool, String> {
     }
 }
 
-/// `hetsim run` on the mutated scenario: exit status, a message naming the file, no results
-/// folder and nothing partial beside it when refused.
-fn through_cli(path: &Path, root: &Path) -> Result<(), String> {
+/// `hetsim run` on the mutated scenario: the same outcome as in-process (`accepted`), a
+/// message naming the file, no results folder and nothing partial beside it when refused.
+fn through_cli(path: &Path, root: &Path, mutated: &str, accepted: bool) -> Result<(), String> {
     let out = root.join("out");
+    let _ = std::fs::remove_dir_all(&out);
     let run = std::process::Command::new(hetsim_bin())
         .args([
             "run",
@@ -240,12 +250,19 @@ fn through_cli(path: &Path, root: &Path) -> Result<(), String> {
     if !leftovers.is_empty() {
         return Err(format!("left behind: {leftovers:?}"));
     }
+    if run.status.success() != accepted {
+        return Err(format!(
+            "in-process {}, but hetsim run exited {:?}: {stderr}",
+            if accepted { "accepted" } else { "refused" },
+            run.status.code()
+        ));
+    }
     if run.status.success() {
         if !out.join("manifest.json").is_file() {
             return Err("exit 0 without a results folder".into());
         }
         std::fs::remove_dir_all(&out).unwrap();
-    } else if out.exists() || !stderr.contains(".toml") {
+    } else if out.exists() || !names_file(&stderr, path, mutated) {
         return Err(format!(
             "refused (exit {:?}) but: results folder {}, message {stderr:?}",
             run.status.code(),
@@ -299,15 +316,16 @@ fn mutated_scenario_and_robot_files_never_panic_hang_or_leave_partial_outputs() 
         // bound): how long the slowest refusal took.
         #[allow(clippy::disallowed_methods)]
         let started = std::time::Instant::now();
-        let mut outcome = bounded(path.clone());
+        let mutated_name = target.file_name().unwrap().to_string_lossy().to_string();
+        let mut outcome = bounded(path.clone(), mutated_name.clone());
         if matches!(outcome, Ok(false)) {
             let secs = started.elapsed().as_secs_f64();
             if secs > slowest.0 {
                 slowest = (secs, case);
             }
         }
-        if outcome.is_ok() && case % 20 == 0 {
-            if let Err(e) = through_cli(&path, root) {
+        if let (Ok(accepted), 0) = (&outcome, case % 20) {
+            if let Err(e) = through_cli(&path, root, &mutated_name, *accepted) {
                 outcome = Err(e);
             }
         }

@@ -284,6 +284,8 @@ fn throw(
     )
     .unwrap();
     let (mut accepted, mut refused) = (0, 0);
+    // Per robot: messages accepted and refused over every kind.
+    let mut per_robot: Vec<(usize, usize)> = vec![(0, 0); s.robots.len()];
     for kind in 0..11 {
         let mut rng = ChaCha8Rng::seed_from_u64(seed * 100 + kind as u64);
         let mut stacks = hetsim_stacks::build_stacks(&s, false);
@@ -301,12 +303,23 @@ fn throw(
                     }
                 }
                 match stack.step(now, &inbox) {
-                    Ok(_) => accepted += 1,
+                    Ok(_) => {
+                        accepted += 1;
+                        per_robot[r].0 += 1;
+                    }
                     Err(e) => {
                         refused += 1;
+                        per_robot[r].1 += 1;
+                        // The refusal names its field, the value and what is allowed, and
+                        // comes from a message of this step.
                         assert!(
-                            !e.field.is_empty() && !e.allowed.is_empty(),
+                            !e.field.is_empty() && !e.value.is_empty() && !e.allowed.is_empty(),
                             "{scenario} robot {r} kind {kind} case {case}: {e}"
+                        );
+                        assert!(
+                            inbox.iter().any(|m| m.stamp_ns() == e.stamp_ns
+                                && hetsim_msgs::sensor_of(m) == e.sensor),
+                            "{scenario} robot {r} kind {kind} case {case}: {e} names no message of the step"
                         );
                     }
                 }
@@ -317,6 +330,14 @@ fn throw(
             let _ = stack.artifacts();
         }
         eprintln!("{scenario} kind {kind}: {accepted} accepted, {refused} refused so far");
+    }
+    // Every stack both computed on messages and refused some: the mutations reach past the
+    // boundary and are caught by it, at each stack.
+    for (r, (a, f)) in per_robot.iter().enumerate() {
+        assert!(
+            *a > 0 && *f > 0,
+            "{scenario} robot {r}: {a} accepted, {f} refused"
+        );
     }
     (accepted, refused)
 }

@@ -83,6 +83,20 @@ fn positive(msg: &SensorMsg, field: &str, v: f64) -> Result<(), InputError> {
     }
 }
 
+/// A standard deviation: 0 for a noise-free sensor, as robot files allow.
+fn sigma(msg: &SensorMsg, field: &str, v: f64) -> Result<(), InputError> {
+    if v.is_finite() && v >= 0.0 {
+        Ok(())
+    } else {
+        Err(InputError::of(
+            msg,
+            field,
+            v,
+            "a finite number of 0 or more",
+        ))
+    }
+}
+
 /// A pose: finite translation, a rotation quaternion of unit norm (within 1e-6).
 fn pose(msg: &SensorMsg, field: &str, p: &Pose) -> Result<(), InputError> {
     let t = p.translation.vector;
@@ -111,7 +125,7 @@ pub fn check_message(msg: &SensorMsg) -> Result<(), InputError> {
             for (axis, v) in ["x", "y", "z"].iter().zip(m.position_m) {
                 finite(msg, &format!("position_m.{axis}"), v)?;
             }
-            positive(msg, "sigma_m", m.sigma_m)
+            sigma(msg, "sigma_m", m.sigma_m)
         }
         SensorMsg::WheelOdometry(m) => {
             finite(msg, "left_m", m.left_m)?;
@@ -175,13 +189,13 @@ pub fn check_message(msg: &SensorMsg) -> Result<(), InputError> {
         }
         SensorMsg::Rendezvous(m) => {
             pose(msg, "relative", &m.relative)?;
-            positive(msg, "sigma_m", m.sigma_m)?;
-            positive(msg, "sigma_rad", m.sigma_rad)
+            sigma(msg, "sigma_m", m.sigma_m)?;
+            sigma(msg, "sigma_rad", m.sigma_rad)
         }
         SensorMsg::ImageMatch(m) => {
             pose(msg, "relative", &m.relative)?;
-            positive(msg, "sigma_m", m.sigma_m)?;
-            positive(msg, "sigma_rad", m.sigma_rad)?;
+            sigma(msg, "sigma_m", m.sigma_m)?;
+            sigma(msg, "sigma_rad", m.sigma_rad)?;
             if m.other_stamp_ns > m.stamp_ns {
                 return Err(InputError::of(
                     msg,

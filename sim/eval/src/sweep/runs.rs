@@ -195,12 +195,14 @@ fn row_path(out: &Path, run: &SweepRun) -> PathBuf {
 }
 
 impl Sweep {
-    /// What makes two runs of this sweep the same run: the kind, the base scenario's and
-    /// robot files' contents, the axes, seeds, metrics, duration and rendering. Written to
-    /// the output folder as `identity.json`; a folder (or shard) with another identity is
-    /// never resumed into or merged, so no row of another sweep is ever reported under this
-    /// sweep's labels. Contents, not paths: shards made from checkouts in other folders merge.
-    pub fn identity(&self) -> Result<serde_json::Value, SweepError> {
+    /// What makes two runs of this sweep the same run: hetsim's version, the kind, the base
+    /// scenario's and every robot file's contents, the axes, seeds, metrics, and the duration
+    /// and rendering as resolved (an omitted `render` is `true`, an omitted duration the
+    /// scenario's). Written to the output folder as `identity.json`; a folder (or shard)
+    /// with another identity is never resumed into or merged, so no row of another sweep is
+    /// ever reported under this sweep's labels. Contents, not paths: shards made from
+    /// checkouts in other folders merge. Compared as the bytes written.
+    pub fn identity(&self) -> Result<Vec<u8>, SweepError> {
         use sha2::{Digest, Sha256};
         let hex = |bytes: &[u8]| -> String {
             Sha256::digest(bytes)
@@ -208,34 +210,44 @@ impl Sweep {
                 .map(|b| format!("{b:02x}"))
                 .collect()
         };
-        // The robot files the base scenario reads, by content (the scenario's own entry is
-        // its text with the first run's axis values written in: left out).
-        let first = self.runs.first().map(|r| self.scenario(r)).transpose()?;
-        let robot_files: std::collections::BTreeSet<String> = first
-            .iter()
-            .flat_map(|s| {
+        // The robot files every combination reads (an axis may switch a robot's model), by
+        // content; each scenario's own entry (its text with the axis values written in) is
+        // left out.
+        let mut robot_files = std::collections::BTreeSet::new();
+        let mut durations = std::collections::BTreeSet::new();
+        for run in self.runs.iter().filter(|r| r.seed == self.file.first_seed) {
+            let s = self.scenario(run)?;
+            durations.insert(format!("{}", s.duration_secs));
+            robot_files.extend(
                 s.file_hashes
                     .iter()
                     .filter(|(path, _)| Path::new(path.as_str()) != s.path)
-                    .map(|(_, h)| h.clone())
-            })
-            .collect();
-        Ok(serde_json::json!({
+                    .map(|(_, h)| h.clone()),
+            );
+        }
+        let render = match self.file.kind {
+            SweepKind::Run => Some(self.file.render.unwrap_or(true)),
+            SweepKind::Plan => None,
+        };
+        let identity = serde_json::json!({
+            "hetsim_version": env!("CARGO_PKG_VERSION"),
             "kind": format!("{:?}", self.file.kind).to_lowercase(),
             "base_scenario_sha256": hex(self.base_text.as_bytes()),
-            "robot_files": robot_files,
+            "robot_files_sha256": robot_files,
             "axes": self.file.axes,
             "seeds": self.file.seeds,
             "first_seed": self.file.first_seed,
             "metrics": self.metrics(),
-            "duration_secs": self.file.duration_secs,
-            "render": self.file.render,
-        }))
+            "duration_secs": durations,
+            "render": render,
+        });
+        Ok(serde_json::to_vec_pretty(&identity).expect("JSON values serialize"))
     }
 
     /// Checks that `dir` holds results of this sweep (or nothing yet): its `identity.json`
-    /// equals [`Sweep::identity`]. A folder with rows but no identity is refused too.
-    fn check_identity(&self, dir: &Path, identity: &serde_json::Value) -> Result<(), SweepError> {
+    /// has the bytes of [`Sweep::identity`]. A folder with rows, runs or a `sweep.toml` but no
+    /// identity is refused too (an older hetsim's, or a foreign one).
+    fn check_identity(&self, dir: &Path, identity: &[u8]) -> Result<(), SweepError> {
         let path = dir.join("identity.json");
         let mismatch = |what: String| SweepError::Mismatch {
             path: dir.to_path_buf(),
@@ -243,30 +255,55 @@ impl Sweep {
             what,
         };
         if !path.is_file() {
-            let has_rows = std::fs::read_dir(dir.join("rows"))
-                .map(|mut d| d.next().is_some())
-                .unwrap_or(false);
-            return if has_rows {
+            let used = |sub: &str| {
+                std::fs::read_dir(dir.join(sub))
+                    .map(|mut d| d.next().is_some())
+                    .unwrap_or(false)
+            };
+            return if used("rows") || used("runs") || dir.join("sweep.toml").exists() {
                 Err(mismatch(
-                    "rows without an identity.json (an older or foreign folder)".into(),
+                    "results without an identity.json (an older hetsim's, or a foreign folder)"
+                        .into(),
                 ))
             } else {
                 Ok(())
             };
         }
-        let theirs: serde_json::Value = serde_json::from_slice(&read(&path)?)
-            .map_err(|e| mismatch(format!("an unreadable identity.json ({e})")))?;
-        if &theirs == identity {
+        let bytes = read(&path)?;
+        if bytes == identity {
             return Ok(());
         }
-        let keys: Vec<String> = identity
-            .as_object()
-            .into_iter()
-            .flatten()
-            .filter(|(k, v)| theirs.get(k.as_str()) != Some(v))
-            .map(|(k, _)| k.clone())
-            .collect();
-        Err(mismatch(format!("its {}", keys.join(", "))))
+        // Which fields differ, with both values.
+        let parse = |b: &[u8]| serde_json::from_slice::<serde_json::Value>(b).ok();
+        let (theirs, ours) = (parse(&bytes), parse(identity));
+        let differ: Vec<String> = match (
+            theirs.as_ref().and_then(|v| v.as_object()),
+            ours.as_ref().and_then(|v| v.as_object()),
+        ) {
+            (Some(t), Some(o)) => o
+                .keys()
+                .chain(t.keys())
+                .collect::<std::collections::BTreeSet<_>>()
+                .into_iter()
+                .filter(|k| t.get(*k) != o.get(*k))
+                .map(|k| {
+                    let show = |v: Option<&serde_json::Value>| {
+                        v.map_or("(none)".to_string(), |v| v.to_string())
+                    };
+                    format!(
+                        "{k}: {} there, {} in this sweep",
+                        show(t.get(k)),
+                        show(o.get(k))
+                    )
+                })
+                .collect(),
+            _ => vec!["an unreadable identity.json".to_string()],
+        };
+        Err(mismatch(if differ.is_empty() {
+            "its identity.json's bytes".to_string()
+        } else {
+            differ.join("; ")
+        }))
     }
 }
 
@@ -305,10 +342,7 @@ pub fn run_sweep_with(
 ) -> Result<SweepSummary, SweepError> {
     let identity = sweep.identity()?;
     sweep.check_identity(out, &identity)?;
-    write_atomic(
-        &out.join("identity.json"),
-        &serde_json::to_vec_pretty(&identity).expect("JSON values serialize"),
-    )?;
+    write_atomic(&out.join("identity.json"), &identity)?;
     write_atomic(&out.join("sweep.toml"), &read(&sweep.path)?)?;
     remove_stale_partials(&out.join("runs"));
     let mine: Vec<&SweepRun> = sweep
@@ -401,10 +435,7 @@ pub fn merge(sweep: &Sweep, out: &Path, shards: &[PathBuf]) -> Result<SweepSumma
         }
         sweep.check_identity(dir, &identity)?;
     }
-    write_atomic(
-        &out.join("identity.json"),
-        &serde_json::to_vec_pretty(&identity).expect("JSON values serialize"),
-    )?;
+    write_atomic(&out.join("identity.json"), &identity)?;
     for dir in shards {
         let from = dir.join("rows");
         let entries = std::fs::read_dir(&from).map_err(FileError::at(&from))?;

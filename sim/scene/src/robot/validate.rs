@@ -199,6 +199,10 @@ impl RobotModel {
                     ..
                 } => {
                     check_image(c, &at, *width_px, *height_px)?;
+                    // The stereo VO's windows and search margins need room: the SLAM refuses
+                    // smaller images at its boundary, so the file is refused here first.
+                    c.range(&at("width_px"), *width_px as f64, 64.0, 8192.0)?;
+                    c.range(&at("height_px"), *height_px as f64, 64.0, 8192.0)?;
                     check_optics(c, &at, *hfov_deg, intrinsics.as_ref())?;
                     c.range(&at("baseline_m"), *baseline_m, 1e-3, 10.0)?;
                     c.range(&at("pixel_noise_sigma"), *pixel_noise_sigma, 0.0, 64.0)?;
