@@ -1,7 +1,8 @@
 //! Seeded mutation fuzzing of scenario and robot files: field values, types, deleted and
 //! duplicated lines, swapped lines and stray bytes, applied to the shipped files. Every case is
 //! loaded in-process (parse, validate, generate the world, place the robots) and, when
-//! accepted, run for 0.3 s of sim time without cameras (physics, sensors, the robot software);
+//! accepted, run for 0.3 s of sim time without cameras (physics, sensors, the robot software)
+//! and evaluated;
 //! every 20th case also goes through `hetsim run` to check the process: a refused file exits
 //! non-zero with a message naming the file and leaves no results folder and nothing
 //! half-written behind.
@@ -173,8 +174,11 @@ fn load_and_run(path: &Path, mutated: &str) -> Result<bool, String> {
     match load_scenario(path, &options) {
         Ok(s) => {
             let stacks = hetsim_stacks::build_stacks(&s, false);
-            hetsim_engine::run(&s, stacks, |_, _| {}, Default::default())
+            let output = hetsim_engine::run(&s, stacks, |_, _| {}, Default::default())
                 .map_err(|e| format!("an accepted scenario failed to run: {e}"))?;
+            // And evaluated, as `hetsim run` does (indoor scenarios plan their coverage).
+            hetsim_eval::Metrics::compute(&s, &output, None)
+                .map_err(|e| format!("an accepted scenario's run failed to evaluate: {e}"))?;
             Ok(true)
         }
         Err(e) => {

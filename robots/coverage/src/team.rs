@@ -303,7 +303,9 @@ impl ChildStack {
                 // Turn only as far as a compass period allows, so a noisy reading is not
                 // overshot: proportional, with a floor so that small errors still close.
                 self.fresh_heading = false;
-                let rate = (1.5 * error).abs().clamp(0.25, self.params.max_turn_radps);
+                // (A robot file may allow less than the floor: then its maximum is the rate.)
+                let max = self.params.max_turn_radps;
+                let rate = (1.5 * error).abs().clamp(0.25f64.min(max), max);
                 self.wheels(0.0, rate * error.signum())
             }
             Phase::Driving {
@@ -536,6 +538,37 @@ mod tests {
             )],
         );
         assert!(replies(&mut c).is_empty());
+    }
+
+    #[test]
+    fn a_child_slower_than_the_turn_floor_turns_at_its_own_maximum() {
+        // A robot file may allow less than the 0.25 rad/s floor (the file fuzzer found one
+        // that made the clamp panic): the wheels then turn the robot at its maximum.
+        let mut c = child();
+        c.params.max_turn_radps = 0.1;
+        let cmd = step(
+            &mut c,
+            0,
+            &[
+                compass(0.0),
+                order(
+                    1,
+                    Order::Drive {
+                        heading_rad: 1.0,
+                        distance_m: 0.3,
+                    },
+                ),
+            ],
+        );
+        let Command::Wheels {
+            left_mps,
+            right_mps,
+        } = cmd
+        else {
+            panic!("{cmd:?}")
+        };
+        let yaw_rate = (right_mps - left_mps) / c.params.track_m;
+        assert!((yaw_rate - 0.1).abs() < 1e-9, "{yaw_rate} rad/s");
     }
 
     #[test]

@@ -161,7 +161,7 @@ fn load_source(source: Source, options: &LoadOptions) -> Result<Scenario, SceneE
         WorldKind::Village => generate_village(&file.village(), &streams, &keep),
         WorldKind::IndoorGrid => generate_indoor(&file.indoor(), &streams, &keep),
     };
-    check_placement(&c, &robots, &world)?;
+    check_placement(&c, &robots, &world, file.coverage.is_some())?;
     Ok(Scenario {
         path: path.to_path_buf(),
         duration_secs: options.duration_secs.unwrap_or(file.duration_secs),
@@ -397,27 +397,35 @@ fn keep_clear(file: &ScenarioFile, robots: &[ResolvedRobot]) -> KeepClear {
     keep
 }
 
-fn check_placement(c: &Checker, robots: &[ResolvedRobot], world: &World) -> Result<(), SceneError> {
+fn check_placement(
+    c: &Checker,
+    robots: &[ResolvedRobot],
+    world: &World,
+    coverage: bool,
+) -> Result<(), SceneError> {
     check_robot_starts(c, robots, world)?;
-    check_team_vertices(c, robots, world)
+    check_team_vertices(c, robots, world, coverage)
 }
 
 /// The robots of a coverage team (seed 002) each start on a vertex of their own: the
-/// mission's schedule has one robot per vertex.
+/// mission's schedule has one robot per vertex. With a `[coverage]` section every robot
+/// counts (the grid-level plan takes them all as the team, whatever their missions).
 fn check_team_vertices(
     c: &Checker,
     robots: &[ResolvedRobot],
     world: &World,
+    coverage: bool,
 ) -> Result<(), SceneError> {
     let Some(indoor) = &world.grid else {
         return Ok(());
     };
     let mut taken: BTreeMap<(usize, usize), usize> = BTreeMap::new();
     for (i, r) in robots.iter().enumerate() {
-        if !matches!(
+        let in_team = matches!(
             r.spec.mission,
             MissionSpec::CoverageParent | MissionSpec::CoverageChild
-        ) {
+        );
+        if !(coverage || in_team) {
             continue;
         }
         let (x, y) = (r.spec.start.x, r.spec.start.y);
