@@ -89,3 +89,44 @@ pub const TEST_INTRINSICS: hetsim_render::Intrinsics = hetsim_render::Intrinsics
     u0: 255.5,
     v0: 191.5,
 };
+
+/// Every file of a sweep's folder by relative path, but what differs by design between two
+/// folders of one sweep: the runs' wall-time `timing.json`, and the `shards/` and `slurm/`
+/// that only a Slurm sweep's folder has.
+pub fn sweep_folder_files(dir: &Path) -> Vec<(String, Vec<u8>)> {
+    fn walk(root: &Path, at: &Path, files: &mut Vec<(String, Vec<u8>)>) {
+        let mut entries: Vec<_> = std::fs::read_dir(at)
+            .unwrap()
+            .map(|e| e.unwrap().path())
+            .collect();
+        entries.sort();
+        for p in entries {
+            let rel = p.strip_prefix(root).unwrap().display().to_string();
+            if p.is_dir() {
+                if rel != "shards" && rel != "slurm" {
+                    walk(root, &p, files);
+                }
+            } else if p.file_name().is_some_and(|n| n != "timing.json") {
+                files.push((rel, std::fs::read(&p).unwrap()));
+            }
+        }
+    }
+    let mut files = Vec::new();
+    walk(dir, dir, &mut files);
+    files
+}
+
+/// Two sweep folders hold the same files with the same bytes ([`sweep_folder_files`]).
+pub fn assert_same_sweep_folders(a: &Path, b: &Path) {
+    let (ta, tb) = (sweep_folder_files(a), sweep_folder_files(b));
+    let names = |t: &[(String, Vec<u8>)]| t.iter().map(|(n, _)| n.clone()).collect::<Vec<_>>();
+    assert_eq!(names(&ta), names(&tb), "{} vs {}", a.display(), b.display());
+    for ((name, x), (_, y)) in ta.iter().zip(&tb) {
+        assert!(
+            x == y,
+            "{name} differs between {} and {}",
+            a.display(),
+            b.display()
+        );
+    }
+}

@@ -125,31 +125,6 @@ fn read_logs(dir: &Path) -> String {
     text
 }
 
-/// Every file of a sweep's folder but the runs' timing.json, by relative path; the shards
-/// and Slurm's scripts and logs are what only the cluster's folder has.
-fn tree(dir: &Path) -> Vec<(String, Vec<u8>)> {
-    fn walk(root: &Path, at: &Path, files: &mut Vec<(String, Vec<u8>)>) {
-        let mut entries: Vec<_> = std::fs::read_dir(at)
-            .unwrap()
-            .map(|e| e.unwrap().path())
-            .collect();
-        entries.sort();
-        for p in entries {
-            let rel = p.strip_prefix(root).unwrap().display().to_string();
-            if p.is_dir() {
-                if rel != "shards" && rel != "slurm" {
-                    walk(root, &p, files);
-                }
-            } else if p.file_name().unwrap() != "timing.json" {
-                files.push((rel, std::fs::read(&p).unwrap()));
-            }
-        }
-    }
-    let mut files = Vec::new();
-    walk(dir, dir, &mut files);
-    files
-}
-
 fn write_sweep(dir: &Path, name: &str, body: &str) -> PathBuf {
     let path = dir.join(format!("{name}.toml"));
     std::fs::write(
@@ -249,24 +224,14 @@ fn village_and_lab_sweeps_through_slurm_merge_to_the_files_of_one_machine() {
             "{}",
             String::from_utf8_lossy(&ran.stderr)
         );
-        let (a, b) = (tree(&local), tree(out));
-        let names = |t: &[(String, Vec<u8>)]| t.iter().map(|(n, _)| n.clone()).collect::<Vec<_>>();
-        assert_eq!(names(&a), names(&b));
-        for ((name, x), (_, y)) in a.iter().zip(&b) {
-            assert!(
-                x == y,
-                "{}: {name} differs between one machine and Slurm",
-                file.display()
-            );
-        }
+        hetsim_tests::assert_same_sweep_folders(&local, out);
         // Four runs, each with its results folder, in both.
         let runs = std::fs::read_to_string(out.join("runs.csv")).unwrap();
         assert_eq!(runs.lines().count(), 5, "{runs}");
-        assert!(
-            a.iter()
-                .filter(|(n, _)| n.ends_with("manifest.json"))
-                .count()
-                == 4
-        );
+        let manifests = hetsim_tests::sweep_folder_files(out)
+            .iter()
+            .filter(|(n, _)| n.ends_with("manifest.json"))
+            .count();
+        assert_eq!(manifests, 4);
     }
 }

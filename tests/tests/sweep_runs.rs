@@ -1,7 +1,7 @@
 //! Sweeps of whole lockstep runs: axes over scenario and robot-file fields, metrics read from
 //! each run's metrics.json, the same files for any job count, sharding or resumption.
 
-use hetsim_tests::{hetsim, repo};
+use hetsim_tests::{assert_same_sweep_folders as assert_same_tree, hetsim, repo};
 use std::path::{Path, PathBuf};
 
 /// A lab sweep cut to its first 300 sim seconds (rendered grabs, tracker, radio): two compass
@@ -28,44 +28,6 @@ fn sweep(args: &[&str]) -> String {
     );
     assert!(out.status.success(), "hetsim sweep {args:?}: {text}");
     text
-}
-
-/// Every file of a sweep's folder but the runs' timing.json (wall time), by relative path.
-fn tree(dir: &Path) -> Vec<(String, Vec<u8>)> {
-    fn walk(root: &Path, at: &Path, files: &mut Vec<(String, Vec<u8>)>) {
-        let mut entries: Vec<_> = std::fs::read_dir(at)
-            .unwrap()
-            .map(|e| e.unwrap().path())
-            .collect();
-        entries.sort();
-        for p in entries {
-            let rel = p.strip_prefix(root).unwrap().display().to_string();
-            if p.is_dir() {
-                if rel != "shards" && rel != "slurm" {
-                    walk(root, &p, files);
-                }
-            } else if p.file_name().unwrap() != "timing.json" {
-                files.push((rel, std::fs::read(&p).unwrap()));
-            }
-        }
-    }
-    let mut files = Vec::new();
-    walk(dir, dir, &mut files);
-    files
-}
-
-fn assert_same_tree(a: &Path, b: &Path) {
-    let (ta, tb) = (tree(a), tree(b));
-    let names = |t: &[(String, Vec<u8>)]| t.iter().map(|(n, _)| n.clone()).collect::<Vec<_>>();
-    assert_eq!(names(&ta), names(&tb), "{} vs {}", a.display(), b.display());
-    for ((name, x), (_, y)) in ta.iter().zip(&tb) {
-        assert!(
-            x == y,
-            "{name} differs between {} and {}",
-            a.display(),
-            b.display()
-        );
-    }
 }
 
 fn csv_rows(path: &Path) -> Vec<Vec<String>> {
