@@ -9,6 +9,7 @@ fn digest_of(scenario: &str, seed: u64, secs: f64) -> String {
     let s = load_scenario(
         &repo().join(scenario),
         &LoadOptions {
+            robot_files: None,
             seed: Some(seed),
             duration_secs: Some(secs),
         },

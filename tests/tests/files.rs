@@ -98,6 +98,7 @@ fn indoor_grids_reach_their_obstruction_ratio_and_stay_connected() {
             let s = load_scenario(
                 &repo().join(format!("scenarios/{file}.toml")),
                 &LoadOptions {
+                    robot_files: None,
                     seed: Some(seed),
                     duration_secs: None,
                 },
@@ -143,6 +144,7 @@ fn different_seeds_make_different_indoor_maps() {
     let a = load_scenario(
         &path,
         &LoadOptions {
+            robot_files: None,
             seed: Some(1),
             duration_secs: None,
         },
@@ -151,6 +153,7 @@ fn different_seeds_make_different_indoor_maps() {
     let b = load_scenario(
         &path,
         &LoadOptions {
+            robot_files: None,
             seed: Some(2),
             duration_secs: None,
         },
@@ -159,6 +162,7 @@ fn different_seeds_make_different_indoor_maps() {
     let c = load_scenario(
         &path,
         &LoadOptions {
+            robot_files: None,
             seed: Some(1),
             duration_secs: None,
         },
@@ -226,6 +230,7 @@ fn in_the_village_the_rover_rides_the_terrain_and_the_helicopter_holds_40_m() {
     let s = load_scenario(
         &repo().join("scenarios/village.toml"),
         &LoadOptions {
+            robot_files: None,
             seed: None,
             duration_secs: Some(120.0),
         },

@@ -168,6 +168,7 @@ fn number_spans(s: &str) -> Vec<(usize, usize)> {
 /// with an error naming `mutated` (or the scenario, for a robot file's field it overrides).
 fn load_and_run(path: &Path, mutated: &str) -> Result<bool, String> {
     let options = LoadOptions {
+        robot_files: None,
         seed: None,
         duration_secs: Some(0.3),
     };

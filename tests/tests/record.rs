@@ -255,6 +255,7 @@ fn a_ros2_recording_of_the_lab_decodes_with_exact_counts() {
     let s = load_scenario(
         &repo().join("scenarios/lab.toml"),
         &LoadOptions {
+            robot_files: None,
             seed: None,
             duration_secs: Some(10.0),
         },
@@ -430,6 +431,7 @@ fn a_ros2_recording_of_the_village_carries_raw_images_imu_gps_and_rendezvous() {
         &path,
         text,
         &LoadOptions {
+            robot_files: None,
             seed: None,
             duration_secs: Some(2.0),
         },

@@ -307,6 +307,7 @@ fn a_json_recording_reads_back_with_the_expected_topics_and_counts() {
     let s = hetsim_scene::load_scenario(
         &repo().join("scenarios/lab.toml"),
         &LoadOptions {
+            robot_files: None,
             seed: None,
             duration_secs: Some(10.0),
         },

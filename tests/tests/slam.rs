@@ -99,7 +99,8 @@ fn run_sequence(frames: usize, lines: bool, truth_in_inbox: bool) -> Sequence {
                 sensor: format!("stereo/{side}"),
                 width: K.width,
                 height: K.height,
-                rgb: f[i].rgb(),
+                encoding: hetsim_msgs::PixelEncoding::Rgb8,
+                data: f[i].rgb(),
             })
         };
         let mut inbox = vec![img(0, "left"), img(1, "right")];

@@ -52,6 +52,7 @@ fn real_payloads() -> Vec<Outgoing> {
         let s = load_scenario(
             &repo().join(format!("scenarios/{file}.toml")),
             &LoadOptions {
+                robot_files: None,
                 seed: None,
                 duration_secs: Some(secs),
             },
@@ -253,17 +254,23 @@ fn message(
             } else {
                 (rng.random_range(0..300), rng.random_range(0..300))
             };
+            let encoding = if rng.random_range(0..2) == 0 {
+                hetsim_msgs::PixelEncoding::Rgb8
+            } else {
+                hetsim_msgs::PixelEncoding::Mono8
+            };
             let n = if rng.random_range(0..4) == 0 {
                 rng.random_range(0..1000)
             } else {
-                (width * height * 3) as usize
+                (width * height * encoding.channels()) as usize
             };
             SensorMsg::Image(Image {
                 stamp_ns: t,
                 sensor,
                 width,
                 height,
-                rgb: (0..n).map(|_| rng.random()).collect(),
+                encoding,
+                data: (0..n).map(|_| rng.random()).collect(),
             })
         }
     }

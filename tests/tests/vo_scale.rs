@@ -96,6 +96,7 @@ fn dump_village(from: f64, to: f64, robots: &[&str]) -> (tempfile::TempDir, Scen
     let scenario = load_scenario(
         &repo().join("scenarios/village.toml"),
         &LoadOptions {
+            robot_files: None,
             duration_secs: Some(to),
             ..LoadOptions::default()
         },

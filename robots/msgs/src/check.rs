@@ -218,7 +218,7 @@ pub fn check_message(msg: &SensorMsg) -> Result<(), InputError> {
             Ok(())
         }
         SensorMsg::Image(m) => {
-            let want = (m.width as u64) * (m.height as u64) * 3;
+            let want = (m.width as u64) * (m.height as u64) * m.encoding.channels() as u64;
             if m.width == 0 || m.height == 0 || m.width > 16_384 || m.height > 16_384 {
                 return Err(InputError::of(
                     msg,
@@ -227,12 +227,16 @@ pub fn check_message(msg: &SensorMsg) -> Result<(), InputError> {
                     "1 to 16384 pixels each way",
                 ));
             }
-            if m.rgb.len() as u64 != want {
+            if m.data.len() as u64 != want {
                 return Err(InputError::of(
                     msg,
-                    "rgb",
-                    format!("{} bytes", m.rgb.len()),
-                    &format!("width x height x 3 = {want} bytes (rgb8)"),
+                    "data",
+                    format!("{} bytes", m.data.len()),
+                    &format!(
+                        "width x height x {} = {want} bytes ({})",
+                        m.encoding.channels(),
+                        m.encoding.ros_name()
+                    ),
                 ));
             }
             Ok(())
@@ -299,7 +303,8 @@ mod tests {
             sensor: "stereo/left".into(),
             width,
             height,
-            rgb: vec![0; bytes],
+            encoding: crate::PixelEncoding::Rgb8,
+            data: vec![0; bytes],
         })
     }
 
@@ -316,7 +321,7 @@ mod tests {
         let e = check_message(&image(4, 3, 35)).unwrap_err();
         assert_eq!(
             (e.sensor.as_str(), e.stamp_ns, e.field.as_str()),
-            ("stereo/left", 5, "rgb")
+            ("stereo/left", 5, "data")
         );
         assert_eq!(e.value, "35 bytes");
         assert!(e.allowed.contains("36 bytes"), "{e}");

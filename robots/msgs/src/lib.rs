@@ -25,7 +25,7 @@ pub use command::Command;
 pub use geometry::{pose_from_xyz_rpy, wrap_angle, yaw_of, Pose};
 pub use message::{
     ChildTracks, CompassReading, CoverageMission, Delivered, GpsFix, Image, ImageMatch, ImuSample,
-    LaserScan, Mission, OccupancyGrid, Outgoing, PoseStamped, Rendezvous, SensorMsg, Track,
-    WheelOdometry,
+    LaserScan, Mission, OccupancyGrid, Outgoing, PixelEncoding, PoseStamped, Rendezvous, SensorMsg,
+    Track, WheelOdometry,
 };
 pub use stack::{Artifact, ArtifactData, RobotStack, StackStatus};

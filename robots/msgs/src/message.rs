@@ -251,11 +251,69 @@ pub struct Image {
     pub width: u32,
     /// Height, pixels.
     pub height: u32,
-    /// RGB, 8 bits per channel, row-major from the top-left pixel. Encoded as bytes: the
-    /// same postcard encoding as a sequence of `u8`, written in one copy rather than one
-    /// serializer call per byte.
+    /// How the pixels are stored: RGB or grey, 8 bits per channel.
+    pub encoding: PixelEncoding,
+    /// The pixels, `width x height x channels` bytes, row-major from the top-left pixel.
+    /// Encoded as bytes: the same postcard encoding as a sequence of `u8`, written in one copy
+    /// rather than one serializer call per byte.
     #[serde(with = "serde_bytes")]
-    pub rgb: Vec<u8>,
+    pub data: Vec<u8>,
+}
+
+/// The pixel format of an [`Image`], with its ROS name (`sensor_msgs/Image.encoding`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum PixelEncoding {
+    /// Red, green, blue; 8 bits each.
+    #[default]
+    Rgb8,
+    /// Grey (luminance, ITU-R BT.601 weights of the rendered RGB, rounded); 8 bits.
+    Mono8,
+}
+
+impl PixelEncoding {
+    /// Bytes per pixel.
+    pub fn channels(self) -> u32 {
+        match self {
+            PixelEncoding::Rgb8 => 3,
+            PixelEncoding::Mono8 => 1,
+        }
+    }
+
+    /// The ROS name (`rgb8`, `mono8`).
+    pub fn ros_name(self) -> &'static str {
+        match self {
+            PixelEncoding::Rgb8 => "rgb8",
+            PixelEncoding::Mono8 => "mono8",
+        }
+    }
+
+    /// The encoding of a ROS name, if hetsim knows it.
+    pub fn from_ros_name(name: &str) -> Option<Self> {
+        match name {
+            "rgb8" => Some(PixelEncoding::Rgb8),
+            "mono8" => Some(PixelEncoding::Mono8),
+            _ => None,
+        }
+    }
+
+    /// The grey level of an RGB pixel (BT.601), rounded: what a mono8 camera delivers.
+    pub fn luminance(rgb: [u8; 3]) -> u8 {
+        let y = 0.299 * rgb[0] as f32 + 0.587 * rgb[1] as f32 + 0.114 * rgb[2] as f32;
+        y.round().clamp(0.0, 255.0) as u8
+    }
+}
+
+impl Image {
+    /// The RGB pixels (grey ones repeated on the three channels).
+    pub fn to_rgb(&self) -> std::borrow::Cow<'_, [u8]> {
+        match self.encoding {
+            PixelEncoding::Rgb8 => std::borrow::Cow::Borrowed(&self.data),
+            PixelEncoding::Mono8 => {
+                std::borrow::Cow::Owned(self.data.iter().flat_map(|&g| [g, g, g]).collect())
+            }
+        }
+    }
 }
 
 /// A message from another robot, delivered by the radio.
@@ -367,22 +425,25 @@ mod tests {
             sensor: String,
             width: u32,
             height: u32,
-            rgb: Vec<u8>,
+            encoding: PixelEncoding,
+            data: Vec<u8>,
         }
-        let rgb: Vec<u8> = (0..300u32).map(|i| (i * 7 % 256) as u8).collect();
+        let data: Vec<u8> = (0..300u32).map(|i| (i * 7 % 256) as u8).collect();
         let image = Image {
             stamp_ns: 12,
             sensor: "cam".into(),
             width: 10,
             height: 10,
-            rgb: rgb.clone(),
+            encoding: PixelEncoding::Rgb8,
+            data: data.clone(),
         };
         let plain = Plain {
             stamp_ns: 12,
             sensor: "cam".into(),
             width: 10,
             height: 10,
-            rgb,
+            encoding: PixelEncoding::Rgb8,
+            data,
         };
         let encoded = postcard::to_stdvec(&image).unwrap();
         assert_eq!(encoded, postcard::to_stdvec(&plain).unwrap());

@@ -285,10 +285,7 @@ impl SlamCore {
     }
 
     fn on_pair(&mut self, left: &Image, right: &Image) {
-        let (l, r) = (
-            Gray::from_rgb(left.width as usize, left.height as usize, &left.rgb),
-            Gray::from_rgb(right.width as usize, right.height as usize, &right.rgb),
-        );
+        let (l, r) = (Gray::from_image(left), Gray::from_image(right));
         let motion = self.vo.process(&l, &r, &mut self.rng);
         let stamp = left.stamp_ns;
         if self.global.is_none() {

@@ -27,6 +27,20 @@ impl Gray {
         }
     }
 
+    /// The grey image a camera message carries: its grey levels as they are (`mono8`), or
+    /// the luminance of its RGB ([`Gray::from_rgb`]).
+    pub fn from_image(image: &hetsim_msgs::Image) -> Self {
+        let (w, h) = (image.width as usize, image.height as usize);
+        match image.encoding {
+            hetsim_msgs::PixelEncoding::Rgb8 => Self::from_rgb(w, h, &image.data),
+            hetsim_msgs::PixelEncoding::Mono8 => Self {
+                width: w,
+                height: h,
+                data: image.data.iter().map(|&g| g as f32).collect(),
+            },
+        }
+    }
+
     /// The image at half resolution: each pixel the mean of a 2 x 2 block (pixel `i` of the
     /// result is centred on `2 i + 0.5` of this one).
     pub fn half(&self) -> Self {

@@ -95,6 +95,7 @@ fn load_for(path: &Path, secs: f64) -> Result<Scenario> {
     Ok(load_scenario(
         path,
         &LoadOptions {
+            robot_files: None,
             seed: None,
             duration_secs: Some(secs),
         },

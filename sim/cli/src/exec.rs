@@ -47,6 +47,7 @@ pub fn frames(
     let loaded = load_scenario(
         scenario,
         &LoadOptions {
+            robot_files: None,
             seed,
             duration_secs: Some(to.max(dt)),
         },

@@ -6,6 +6,7 @@
 
 mod bench;
 mod exec;
+mod replay;
 mod slurm;
 mod study;
 
@@ -115,6 +116,31 @@ enum Cmd {
         /// Use the adapter whose name contains this (default: HETSIM_ADAPTER, else any).
         #[arg(long)]
         adapter: Option<String>,
+    },
+    /// Feed a recording (`hetsim run --record`) or a EuRoC dataset's mav0 folder to the robot
+    /// software, with no physics and no rendering, and write the results folder a live run
+    /// writes. Every command a stack sends is checked against the recorded one.
+    Replay {
+        /// The MCAP recording, or a EuRoC dataset's mav0 folder.
+        source: PathBuf,
+        /// Replay only this robot (repeatable; default: all). The others' recorded radio
+        /// messages still reach it. A EuRoC dataset feeds exactly one.
+        #[arg(long = "robot")]
+        robots: Vec<String>,
+        /// Results directory (default: results/runs/replay-<recording name>).
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Change a setting before replaying, e.g. `--set robots.dala.slam.sigma_px=1.5` or
+        /// `--set models.ressac.slam.lines=false` (repeatable; values in TOML syntax).
+        #[arg(long)]
+        set: Vec<String>,
+        /// Scenario to replay into (default: the one the recording carries; required for a
+        /// EuRoC dataset).
+        #[arg(long)]
+        scenario: Option<PathBuf>,
+        /// Replay only the first SECS sim seconds.
+        #[arg(long)]
+        duration: Option<f64>,
     },
     /// Check scenario and robot files without running anything.
     Validate {
@@ -243,6 +269,7 @@ fn real_main() -> Result<()> {
             let loaded = load_scenario(
                 &scenario,
                 &LoadOptions {
+                    robot_files: None,
                     seed,
                     duration_secs: duration,
                 },
@@ -312,6 +339,26 @@ fn real_main() -> Result<()> {
                 anisotropy: None,
             },
         )?,
+        Cmd::Replay {
+            source,
+            robots,
+            out,
+            set,
+            scenario,
+            duration,
+        } => {
+            let files = replay::replay(&replay::ReplayArgs {
+                source,
+                robots,
+                out,
+                set,
+                scenario,
+                duration,
+                quiet: false,
+            })?;
+            println!("results: {}", files.dir.display());
+            println!("digest: {}", files.digest);
+        }
         Cmd::Validate { files } => {
             anyhow::ensure!(
                 !files.is_empty(),

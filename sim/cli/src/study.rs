@@ -261,6 +261,7 @@ pub fn localize(
             let loaded = load_scenario(
                 scenario,
                 &LoadOptions {
+                    robot_files: None,
                     seed: Some(seed),
                     duration_secs: None,
                 },

@@ -13,7 +13,7 @@
 //! * Every camera due on a tick is rendered in one batch; a camera never sees its own robot.
 
 use hetsim_core::{SimClock, SimRng, Streams};
-use hetsim_msgs::{pose_from_xyz_rpy, Image, Pose};
+use hetsim_msgs::{pose_from_xyz_rpy, Image, PixelEncoding, Pose};
 use hetsim_physics::Physics;
 use hetsim_render::Frame;
 use hetsim_render::{
@@ -52,6 +52,8 @@ struct Rig {
     gain: f32,
     model: Model,
     rng: SimRng,
+    /// What the camera delivers (grey is the luminance of the noisy RGB, rounded).
+    encoding: PixelEncoding,
 }
 
 /// One captured image with its ground truth.
@@ -146,8 +148,10 @@ impl Cameras {
                         pixel_noise_sigma,
                         distortion,
                         gain,
+                        encoding,
                         ..
                     } => rigs.push(Rig {
+                        encoding: *encoding,
                         robot: i,
                         rng: streams.stream(&format!("{base}/pixel_noise")),
                         topic: base,
@@ -181,10 +185,12 @@ impl Cameras {
                         pixel_noise_sigma,
                         distortion,
                         gain,
+                        encoding,
                         ..
                     } => {
                         for (eye, offset) in [("left", 0.0), ("right", -baseline_m)] {
                             rigs.push(Rig {
+                                encoding: *encoding,
                                 robot: i,
                                 rng: streams.stream(&format!("{base}/{eye}/pixel_noise")),
                                 topic: format!("{base}/{eye}"),
@@ -220,6 +226,7 @@ impl Cameras {
                     } => {
                         let face_px = (width_px / 4).max(16);
                         rigs.push(Rig {
+                            encoding: PixelEncoding::Rgb8,
                             robot: i,
                             rng: streams.stream(&format!("{base}/pixel_noise")),
                             topic: base,
@@ -424,6 +431,13 @@ impl Rig {
                 })
                 .collect(),
         };
+        let data = match self.encoding {
+            PixelEncoding::Rgb8 => rgb,
+            PixelEncoding::Mono8 => rgb
+                .chunks_exact(3)
+                .map(|p| PixelEncoding::luminance([p[0], p[1], p[2]]))
+                .collect(),
+        };
         let body_from_optical = Isometry3::from_parts(
             self.body_from_mount.translation,
             self.body_from_mount.rotation * mount_to_optical(),
@@ -444,7 +458,8 @@ impl Rig {
                 sensor: self.sensor.clone(),
                 width: self.intrinsics.width,
                 height: self.intrinsics.height,
-                rgb,
+                encoding: self.encoding,
+                data,
             },
             depth_m: depth,
             world_from_optical: Isometry3::from_parts(

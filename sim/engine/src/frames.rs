@@ -26,7 +26,7 @@
 use crate::cameras::Shot;
 use crate::output::tum_line;
 use hetsim_core::files::FileError;
-use hetsim_msgs::{ImuSample, Pose};
+use hetsim_msgs::{ImuSample, PixelEncoding, Pose};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
@@ -213,11 +213,18 @@ impl FrameDump {
             std::fs::write(&path, euroc::camera_yaml(shot)).map_err(FileError::at(&path))?;
         }
         let name = format!("{ns}.png");
-        let img = image::RgbImage::from_raw(width, height, shot.image.rgb.clone())
-            .ok_or_else(|| size("image", shot.image.rgb.len()))?;
         let path = dir.join("data").join(&name);
-        img.save_with_format(&path, image::ImageFormat::Png)
-            .map_err(encode(&path))?;
+        let data = shot.image.data.clone();
+        let len = data.len();
+        match shot.image.encoding {
+            PixelEncoding::Rgb8 => image::RgbImage::from_raw(width, height, data)
+                .ok_or_else(|| size("image", len))?
+                .save_with_format(&path, image::ImageFormat::Png),
+            PixelEncoding::Mono8 => image::GrayImage::from_raw(width, height, data)
+                .ok_or_else(|| size("image", len))?
+                .save_with_format(&path, image::ImageFormat::Png),
+        }
+        .map_err(encode(&path))?;
         if let Some(depth_m) = &shot.depth_m {
             let mm: Vec<u16> = depth_m
                 .iter()

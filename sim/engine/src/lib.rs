@@ -17,7 +17,9 @@ pub mod comms;
 pub mod frames;
 mod output;
 pub mod record;
+pub mod replay;
 mod run;
 
 pub use output::{tum_line, RobotOutcome, RunOutput};
+pub use replay::{replay, ReplayError};
 pub use run::{run, RunError, RunOptions};

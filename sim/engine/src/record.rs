@@ -33,7 +33,10 @@ use std::io::BufWriter;
 use std::path::{Path, PathBuf};
 
 mod json;
-mod ros2;
+mod meta;
+pub(crate) mod ros2;
+
+pub use meta::{RecordedOutcome, OUTCOME_METADATA, RUN_METADATA};
 
 /// Latitude and longitude (degrees) and altitude (metres) of the world origin: LAAS-CNRS,
 /// Toulouse. Any origin would do; this one is documented so positions can be reproduced.
@@ -85,6 +88,8 @@ pub struct Recorder {
     /// Sensor frames whose `/tf_static` transform is written.
     static_frames: BTreeSet<String>,
     sequence: u32,
+    /// The delivery time of the sensor message being written, if it is one.
+    received_ns: Option<u64>,
     tmp: PathBuf,
     path: PathBuf,
 }
@@ -118,6 +123,7 @@ impl Recorder {
             counts: BTreeMap::new(),
             static_frames: BTreeSet::new(),
             sequence: 0,
+            received_ns: None,
             tmp,
             path: path.to_path_buf(),
         })
@@ -170,13 +176,15 @@ impl Recorder {
         c
     }
 
+    /// Writes a message stamped `stamp_ns` that its robot received at `self.received_ns`
+    /// (MCAP's log time: replay feeds a message at the tick it was received).
     fn write_bytes(&mut self, topic: &str, schema: &str, stamp_ns: u64, data: &[u8]) {
         let channel = self.channel(topic, schema);
         self.sequence += 1;
         let header = mcap::records::MessageHeader {
             channel_id: channel,
             sequence: self.sequence,
-            log_time: stamp_ns,
+            log_time: self.received_ns.unwrap_or(stamp_ns),
             publish_time: stamp_ns,
         };
         // A failing disk surfaces at finish(), which reports it; the run goes on meanwhile.
@@ -313,18 +321,33 @@ impl Recorder {
         frame
     }
 
-    /// A sensor message or a radio delivery for `robot`, on `/<topic>`; `body_from_sensor`
-    /// is the sensor's mount (a camera's optical frame), where it has one.
+    /// A sensor message or a radio delivery for `robot`, on `/<topic>`, delivered to it at
+    /// `received_ns` (the message's log time); `body_from_sensor` is the sensor's mount (a
+    /// camera's optical frame), where it has one.
     pub fn sensor(
         &mut self,
         robot: &str,
         topic: &str,
         body_from_sensor: Option<&Pose>,
         msg: &SensorMsg,
+        received_ns: u64,
     ) {
+        self.received_ns = Some(received_ns);
         if self.encoding == RecordEncoding::Json {
-            return self.json_sensor(robot, topic, body_from_sensor, msg);
+            self.json_sensor(robot, topic, body_from_sensor, msg);
+        } else {
+            self.ros2_sensor(robot, topic, body_from_sensor, msg);
         }
+        self.received_ns = None;
+    }
+
+    fn ros2_sensor(
+        &mut self,
+        robot: &str,
+        topic: &str,
+        body_from_sensor: Option<&Pose>,
+        msg: &SensorMsg,
+    ) {
         let t = msg.stamp_ns();
         let sensor = topic.split_once('/').map_or(topic, |(_, s)| s);
         let header = |frame: String| ros2::Header {
@@ -346,10 +369,10 @@ impl Recorder {
                         header: header(frame),
                         height: m.height,
                         width: m.width,
-                        encoding: "rgb8",
+                        encoding: m.encoding.ros_name(),
                         is_bigendian: 0,
-                        step: m.width * 3,
-                        data: &m.rgb,
+                        step: m.width * m.encoding.channels(),
+                        data: &m.data,
                     },
                 );
             }
@@ -372,6 +395,22 @@ impl Recorder {
                         altitude,
                         position_covariance: [var, 0.0, 0.0, 0.0, var, 0.0, 0.0, 0.0, var],
                         position_covariance_type: 2,
+                    },
+                );
+                // The fix as the robot received it, in the local frame: WGS-84 does not
+                // round-trip to the same bits, and replay must feed the same bytes.
+                let [x, y, z] = m.position_m;
+                self.write_cdr(
+                    &format!("{topic}/local"),
+                    "hetsim_msgs/msg/GpsLocal",
+                    t,
+                    &ros2::GpsLocal {
+                        header: ros2::Header {
+                            stamp: ros2::Time::of(t),
+                            frame_id: "world".into(),
+                        },
+                        position: ros2::Vector3 { x, y, z },
+                        sigma_m: m.sigma_m,
                     },
                 );
             }
@@ -517,6 +556,7 @@ impl Recorder {
                     topic: &m.topic,
                     sent: ros2::Time::of(m.sent_ns),
                     bytes: m.payload.len().min(u32::MAX as usize) as u32,
+                    payload: &m.payload,
                 },
             ),
         }

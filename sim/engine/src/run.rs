@@ -61,6 +61,9 @@ pub enum RunError {
     /// Frames could not be written.
     #[error("writing frames: {0}")]
     Frames(#[from] crate::frames::FrameError),
+    /// The recording could not be written.
+    #[error("recording: {0}")]
+    Record(#[from] crate::record::RecordError),
     /// A robot's software refused a message it was fed.
     #[error("robot {robot} refused a message: {error}")]
     Input {
@@ -86,6 +89,8 @@ struct Post<'a> {
     digest: RunDigest,
     recorder: Option<&'a mut Recorder>,
     counts: BTreeMap<String, u64>,
+    /// When the messages being posted reach their robot (the next tick's time).
+    received_ns: u64,
 }
 
 impl Post<'_> {
@@ -110,7 +115,7 @@ impl Post<'_> {
     /// The recording, the counts and the inbox.
     fn file(&mut self, robot: usize, topic: &str, msg: SensorMsg, mount: Option<&Pose>) {
         if let Some(r) = self.recorder.as_deref_mut() {
-            r.sensor(&self.names[robot], topic, mount, &msg);
+            r.sensor(&self.names[robot], topic, mount, &msg, self.received_ns);
         }
         *self.counts.entry(topic.to_string()).or_default() += 1;
         self.inboxes[robot].push(msg);
@@ -146,6 +151,29 @@ impl Topics {
                 .collect(),
         }
     }
+}
+
+/// Each robot's enabled oracle, if its robot file declares one: (topic, period in ticks).
+pub(crate) fn oracles(scenario: &Scenario) -> Vec<Option<(String, u64)>> {
+    scenario
+        .robots
+        .iter()
+        .map(|r| {
+            r.model
+                .sensors
+                .iter()
+                .find(|s| s.is_enabled_oracle())
+                .map(|s| {
+                    (
+                        format!("{}/{}", r.spec.name, s.name()),
+                        scenario
+                            .clock
+                            .period_ticks(s.rate_hz())
+                            .expect("validated rate"),
+                    )
+                })
+        })
+        .collect()
 }
 
 fn run_on_worker(
@@ -201,49 +229,40 @@ fn run_on_worker(
         digest: RunDigest::new(),
         recorder,
         counts: BTreeMap::new(),
+        received_ns: 0,
     };
+    if let Some(r) = post.recorder.as_deref_mut() {
+        r.describe(scenario)?;
+    }
     // What each stack computed (its commands and radio messages), digested per robot.
     let mut stack_digests: Vec<RunDigest> = (0..n).map(|_| RunDigest::new()).collect();
     let mut truth: Vec<Vec<(u64, Pose)>> = vec![Vec::new(); n];
     let mut keyframes_seen = vec![0usize; n];
     let topics = Topics::of(scenario, &names);
-    // Each robot's enabled oracle, if its robot file declares one: (topic, period in ticks).
-    let oracles: Vec<Option<(String, u64)>> = scenario
-        .robots
-        .iter()
-        .map(|r| {
-            r.model
-                .sensors
-                .iter()
-                .find(|s| s.is_enabled_oracle())
-                .map(|s| {
-                    (
-                        format!("{}/{}", r.spec.name, s.name()),
-                        clock.period_ticks(s.rate_hz()).expect("validated rate"),
-                    )
-                })
-        })
-        .collect();
-    // Ground truth is kept (and recorded) for every robot at the truth rate, for evaluation;
-    // a robot receives it only through its oracle.
+    let oracles = oracles(scenario);
+    // Ground truth is kept for every robot at the truth rate, for evaluation, and recorded at
+    // every tick (replay's radio needs the positions the live radio saw); a robot receives it
+    // only through its oracle.
     let sample_truth =
         |post: &mut Post, truth: &mut Vec<Vec<(u64, Pose)>>, physics: &Physics, tick: u64| {
             let stamp_ns = clock.time_ns(tick);
+            post.received_ns = stamp_ns;
             for i in 0..n {
                 let oracle = oracles[i].as_ref().filter(|(_, period)| tick % period == 0);
                 let kept = tick % truth_period == 0;
-                if oracle.is_none() && !kept {
+                let recorded = post.recorder.is_some();
+                if oracle.is_none() && !kept && !recorded {
                     continue;
                 }
                 let pose = physics.pose(i);
+                if let Some(r) = post.recorder.as_deref_mut() {
+                    r.truth(&names[i], stamp_ns, &pose);
+                }
                 if let Some((topic, _)) = oracle {
                     let msg = SensorMsg::TruthPose(PoseStamped { stamp_ns, pose });
                     post.deliver(i, topic, msg, None);
                 }
                 if kept {
-                    if let Some(r) = post.recorder.as_deref_mut() {
-                        r.truth(&names[i], stamp_ns, &pose);
-                    }
                     truth[i].push((stamp_ns, pose));
                 }
             }
@@ -378,6 +397,16 @@ fn run_on_worker(
         }
     }
     progress(total, total);
+    if let Some(r) = post.recorder.as_deref_mut() {
+        let outcomes: Vec<_> = (0..n)
+            .map(|i| crate::record::RecordedOutcome {
+                name: names[i].clone(),
+                distance_m: physics.state(i).distance_m,
+                collisions: physics.state(i).collisions,
+            })
+            .collect();
+        r.outcome(ticks, &outcomes)?;
+    }
     if let Some(d) = dump.as_deref() {
         let samples: Vec<(&str, &[(u64, Pose)])> = names
             .iter()
@@ -423,7 +452,7 @@ fn run_on_worker(
 }
 
 /// The postcard encoding's length and SHA-256, written straight into the hasher.
-fn hash_encoded<T: Serialize>(value: &T) -> (u64, [u8; 32]) {
+pub(crate) fn hash_encoded<T: Serialize>(value: &T) -> (u64, [u8; 32]) {
     struct Hashing(PayloadHasher);
     impl postcard::ser_flavors::Flavor for Hashing {
         type Output = PayloadHasher;
@@ -444,7 +473,7 @@ fn hash_encoded<T: Serialize>(value: &T) -> (u64, [u8; 32]) {
         .finish()
 }
 
-fn encode<T: Serialize>(value: &T) -> Vec<u8> {
+pub(crate) fn encode<T: Serialize>(value: &T) -> Vec<u8> {
     postcard::to_stdvec(value).expect("plain-data messages always encode")
 }
 
@@ -459,7 +488,8 @@ mod tests {
             sensor: "stereo/left".into(),
             width: 3,
             height: 2,
-            rgb: (0..18).collect(),
+            encoding: hetsim_msgs::PixelEncoding::Rgb8,
+            data: (0..18).collect(),
         });
         let mut direct = PayloadHasher::default();
         direct.write(&encode(&msg));

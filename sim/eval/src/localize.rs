@@ -42,11 +42,7 @@ pub fn database_of(
             let p = crate::scene::truth_at(track, d.image.stamp_ns)
                 .translation
                 .vector;
-            let gray = Gray::from_rgb(
-                d.image.width as usize,
-                d.image.height as usize,
-                &d.image.rgb,
-            );
+            let gray = Gray::from_image(&d.image);
             Some(DbImage {
                 vertex: d.vertex,
                 estimated_xy: d.estimated_xy,

@@ -127,6 +127,7 @@ pub fn regress(
         let loaded = load_scenario(
             &root.join(scenario),
             &LoadOptions {
+                robot_files: None,
                 seed,
                 duration_secs: None,
             },

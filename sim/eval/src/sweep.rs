@@ -31,6 +31,7 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 mod axes;
+pub use axes::apply_settings;
 mod runs;
 mod summary;
 pub use runs::{
@@ -438,6 +439,7 @@ impl Sweep {
             &self.base,
             text,
             &LoadOptions {
+                robot_files: None,
                 seed: Some(run.seed),
                 duration_secs: self.file.duration_secs,
             },

@@ -241,7 +241,7 @@ pub fn files(
     for d in &r.database {
         let name = format!("coverage/images/{}_{}.png", d.vertex.0, d.vertex.1);
         if let Some(img) =
-            image::RgbImage::from_raw(d.image.width, d.image.height, d.image.rgb.clone())
+            image::RgbImage::from_raw(d.image.width, d.image.height, d.image.to_rgb().into_owned())
         {
             out.push((name.clone(), png(img)));
         }
@@ -249,11 +249,7 @@ pub fn files(
             .iter()
             .find(|(n, _)| *n == d.child)
             .map(|(_, t)| truth_at(t, d.image.stamp_ns));
-        let gray = hetsim_vision::Gray::from_rgb(
-            d.image.width as usize,
-            d.image.height as usize,
-            &d.image.rgb,
-        );
+        let gray = hetsim_vision::Gray::from_image(&d.image);
         let features = hetsim_vision::appearance::Features::of(&gray);
         entries.push(json!({
             "wgoh": features.wgoh.0,

@@ -21,7 +21,8 @@ pub use load::{
     load_robot_model, load_scenario, load_scenario_text, LoadOptions, ResolvedRobot, Scenario,
 };
 pub use robot::{
-    Body, DriveKind, Helicopter, Intrinsics, Mount, Pilot, RobotModel, Sensor, SteeringKind, Wheels,
+    Body, DriveKind, Helicopter, Intrinsics, Mount, Pilot, RobotModel, Sensor, SlamTuning,
+    SteeringKind, Wheels,
 };
 pub use scenario::{
     BoxSpec, CommsSpec, CoverageSpec, IndoorSpec, MissionSpec, RobotSpec, ScenarioFile, Start,

@@ -18,6 +18,9 @@ pub struct LoadOptions {
     pub seed: Option<u64>,
     /// Replaces the scenario's `duration_secs`.
     pub duration_secs: Option<f64>,
+    /// Robot files' texts by model, used instead of reading them from `models_dir` (replay
+    /// uses the robot files a recording carries).
+    pub robot_files: Option<BTreeMap<String, String>>,
 }
 
 /// A robot with its resolved model.
@@ -29,6 +32,8 @@ pub struct ResolvedRobot {
     pub model: RobotModel,
     /// The robot file.
     pub model_path: PathBuf,
+    /// The robot file's text as read (before the scenario's overrides).
+    pub model_text: String,
 }
 
 /// A loaded, validated scenario and its world.
@@ -50,6 +55,8 @@ pub struct Scenario {
     pub world: World,
     /// SHA-256 of every file read, keyed by its path as given.
     pub file_hashes: BTreeMap<String, String>,
+    /// The scenario file's text as read (recordings carry it, so replay needs no files).
+    pub text: String,
 }
 
 fn sha256_hex(bytes: &[u8]) -> String {
@@ -132,7 +139,24 @@ fn load_source(source: Source, options: &LoadOptions) -> Result<Scenario, SceneE
     let mut robots = Vec::new();
     for (i, spec) in file.robots.iter().enumerate() {
         let model_path = models_dir.join(format!("{}.toml", spec.model));
-        if !model_path.is_file() {
+        let given = options
+            .robot_files
+            .as_ref()
+            .map(|files| files.get(&spec.model).cloned());
+        if given == Some(None) {
+            let known: Vec<&str> = options
+                .robot_files
+                .iter()
+                .flat_map(|f| f.keys().map(String::as_str))
+                .collect();
+            return Err(c.error_at(
+                &["robots", &i.to_string(), "model"],
+                format!("\"{}\"", spec.model),
+                format!("one of the robot files given: {}", known.join(", ")),
+            ));
+        }
+        let given = given.flatten();
+        if given.is_none() && !model_path.is_file() {
             let known = list_models(&models_dir);
             return Err(c.error_at(
                 &["robots", &i.to_string(), "model"],
@@ -140,16 +164,18 @@ fn load_source(source: Source, options: &LoadOptions) -> Result<Scenario, SceneE
                 format!("a robot file in {}: one of {known}", models_dir.display()),
             ));
         }
-        let model = load_with_overrides(&c, i, spec, &model_path, file.dt_secs)?;
-        let text = std::fs::read(&model_path).map_err(|e| SceneError::Read {
-            path: model_path.clone(),
-            reason: e.to_string(),
-        })?;
+        let source = match &given {
+            Some(text) => Source::from_text(&model_path, text.clone())?,
+            None => Source::read(&model_path)?,
+        };
+        let text = source.text().as_bytes().to_vec();
+        let model = load_with_overrides(&c, i, spec, source, file.dt_secs)?;
         file_hashes.insert(model_path.display().to_string(), sha256_hex(&text));
         robots.push(ResolvedRobot {
             spec: spec.clone(),
             model,
             model_path,
+            model_text: String::from_utf8_lossy(&text).into_owned(),
         });
     }
     check_missions(&c, &file, &robots)?;
@@ -171,6 +197,7 @@ fn load_source(source: Source, options: &LoadOptions) -> Result<Scenario, SceneE
         robots,
         world,
         file_hashes,
+        text: source.text().to_string(),
     })
 }
 
@@ -202,10 +229,10 @@ fn load_with_overrides(
     c: &Checker,
     index: usize,
     spec: &RobotSpec,
-    model_path: &Path,
+    source: Source,
     dt_secs: f64,
 ) -> Result<RobotModel, SceneError> {
-    let source = Source::read(model_path)?;
+    let model_path = &source.path().to_path_buf();
     // The file must be valid on its own, so that its own errors point at its own lines.
     let model: RobotModel = source.parse()?;
     check_model_name(&source, &model)?;

@@ -6,7 +6,10 @@
 
 use serde::{Deserialize, Serialize};
 
+mod slam;
 mod validate;
+
+pub use slam::SlamTuning;
 
 /// A robot description.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -26,6 +29,9 @@ pub struct RobotModel {
     /// The robot's sensors.
     #[serde(default)]
     pub sensors: Vec<Sensor>,
+    /// Tuning of its SLAM software, where it runs one (absent fields: the seed's values).
+    #[serde(default)]
+    pub slam: SlamTuning,
 }
 
 /// How a robot moves.
@@ -197,6 +203,9 @@ pub enum Sensor {
         /// Exposure gain applied to the rendered intensities.
         #[serde(default = "unit_gain")]
         gain: f64,
+        /// What the camera delivers: `"rgb8"` (the default) or `"mono8"` (grey).
+        #[serde(default)]
+        encoding: hetsim_msgs::PixelEncoding,
     },
     /// A rectified stereo bench: left camera at `mount`, right camera `baseline_m` to its right.
     StereoCamera {
@@ -227,6 +236,9 @@ pub enum Sensor {
         /// Exposure gain applied to the rendered intensities.
         #[serde(default = "unit_gain")]
         gain: f64,
+        /// What the cameras deliver: `"rgb8"` (the default) or `"mono8"` (grey).
+        #[serde(default)]
+        encoding: hetsim_msgs::PixelEncoding,
     },
     /// An omnidirectional camera (the parent's tracker camera).
     OmniCamera {

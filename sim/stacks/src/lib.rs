@@ -112,6 +112,7 @@ pub fn build_stack(
                 _ => hetsim_slam::stack::SlamParams::ground(),
             };
             params.cooperative = !open_loop;
+            tune(&mut params, &robot.model.slam);
             // The team's frame is the first sub-map of the scenario's first robot (seed
             // Section V: Dala's); every other robot starts in its own until an event links it.
             params.reference_robot = scenario.robots.first().map(|r| r.spec.name.clone());
@@ -129,6 +130,28 @@ pub fn build_stack(
             ))
         }
         None => pilot,
+    }
+}
+
+/// The robot file's `[slam]` values over the seed's.
+fn tune(params: &mut hetsim_slam::stack::SlamParams, t: &hetsim_scene::SlamTuning) {
+    if let Some(v) = t.sigma_px {
+        params.sigma_px = v;
+    }
+    if let Some(v) = t.max_landmarks {
+        params.max_landmarks = v as usize;
+    }
+    if let Some(v) = t.per_region {
+        params.per_region = v as usize;
+    }
+    if let Some(v) = t.lines {
+        params.lines = v;
+    }
+    if let Some(v) = t.min_line_px {
+        params.min_line_px = v;
+    }
+    if let Some(v) = t.match_gate_chi2 {
+        params.match_gate_chi2 = v;
     }
 }
 

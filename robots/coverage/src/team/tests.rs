@@ -199,7 +199,8 @@ fn a_grab_waits_for_an_image_taken_after_settling() {
             sensor: "camera".into(),
             width: 1,
             height: 1,
-            rgb: vec![1, 2, 3],
+            encoding: hetsim_msgs::PixelEncoding::Rgb8,
+            data: vec![1, 2, 3],
         })
     };
     step(&mut c, 100_000_000, &[img(100_000_000)]);

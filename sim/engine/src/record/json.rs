@@ -160,7 +160,7 @@ impl Recorder {
             SensorMsg::ImageMatch(m) => self.write_json(&topic, "hetsim.ImageMatch", t, &json!({"timestamp": stamp(t), "frame_id": frame, "other": m.other, "other_stamp": stamp(m.other_stamp_ns), "pose": pose_json(&m.relative), "sigma_m": m.sigma_m, "sigma_rad": m.sigma_rad})),
             SensorMsg::Image(m) => {
                 let mut png = Vec::new();
-                let img = image::RgbImage::from_raw(m.width, m.height, m.rgb.clone()).expect("image size matches its pixels");
+                let img = image::RgbImage::from_raw(m.width, m.height, m.to_rgb().into_owned()).expect("image size matches its pixels");
                 img.write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png).expect("PNG encodes in memory");
                 self.write_json(&topic, "foxglove.CompressedImage", t, &json!({"timestamp": stamp(t), "frame_id": format!("{robot}/{}", m.sensor.replace('/', "_")), "data": base64(&png), "format": "png"}));
             }

@@ -8,7 +8,7 @@
 //! ROS 2 tool that reads definitions from the file (Foxglove, `mcap-ros2-support`, rosbags)
 //! decodes them without a package installed.
 
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 /// A definition with its dependencies, in rosbag2's layout: the type's own fields, then per
 /// dependency a line of 80 `=`, `MSG: pkg/Type` and its fields.
@@ -105,15 +105,19 @@ pub fn definition(schema: &str) -> Option<String> {
             &[HEADER, TIME, POSE, POINT, QUATERNION],
         ),
         "hetsim_msgs/msg/Comms" => with_deps(
-            "# A radio delivery to this robot: sender, topic, when it was sent and its size.\nstd_msgs/Header header\nstring from\nstring to\nstring topic\nbuiltin_interfaces/Time sent\nuint32 bytes\n",
+            "# A radio delivery to this robot: sender, topic, when it was sent, its size and its bytes.\nstd_msgs/Header header\nstring from\nstring to\nstring topic\nbuiltin_interfaces/Time sent\nuint32 bytes\nuint8[] payload\n",
             &header_deps,
+        ),
+        "hetsim_msgs/msg/GpsLocal" => with_deps(
+            "# A GPS fix in the local world frame (east, north, up), metres, exactly as the robot received it; the NavSatFix beside it carries the same fix in WGS-84.\nstd_msgs/Header header\ngeometry_msgs/Point position\nfloat64 sigma_m\n",
+            &[HEADER, TIME, POINT],
         ),
         _ => return None,
     })
 }
 
 /// `builtin_interfaces/Time`.
-#[derive(Clone, Copy, Serialize)]
+#[derive(Clone, Copy, Serialize, Deserialize)]
 pub struct Time {
     pub sec: i32,
     pub nanosec: u32,
@@ -130,14 +134,14 @@ impl Time {
 }
 
 /// `std_msgs/Header`.
-#[derive(Serialize)]
+#[derive(Serialize, Deserialize)]
 pub struct Header {
     pub stamp: Time,
     pub frame_id: String,
 }
 
 /// `geometry_msgs/Vector3` and `Point`.
-#[derive(Clone, Copy, Serialize)]
+#[derive(Clone, Copy, Serialize, Deserialize)]
 pub struct Vector3 {
     pub x: f64,
     pub y: f64,
@@ -145,7 +149,7 @@ pub struct Vector3 {
 }
 
 /// `geometry_msgs/Quaternion`.
-#[derive(Clone, Copy, Serialize)]
+#[derive(Clone, Copy, Serialize, Deserialize)]
 pub struct Quaternion {
     pub x: f64,
     pub y: f64,
@@ -154,7 +158,7 @@ pub struct Quaternion {
 }
 
 /// `geometry_msgs/Pose` (and `Transform`: the same layout).
-#[derive(Clone, Copy, Serialize)]
+#[derive(Clone, Copy, Serialize, Deserialize)]
 pub struct Pose {
     pub position: Vector3,
     pub orientation: Quaternion,
@@ -228,7 +232,7 @@ pub struct LaserScan<'a> {
 }
 
 /// `sensor_msgs/msg/Imu`.
-#[derive(Serialize)]
+#[derive(Serialize, Deserialize)]
 pub struct Imu {
     pub header: Header,
     pub orientation: Quaternion,
@@ -240,7 +244,7 @@ pub struct Imu {
 }
 
 /// `geometry_msgs/msg/PoseStamped`.
-#[derive(Serialize)]
+#[derive(Serialize, Deserialize)]
 pub struct PoseStamped {
     pub header: Header,
     pub pose: Pose,
@@ -275,14 +279,14 @@ pub struct Command<'a> {
 }
 
 /// `hetsim_msgs/msg/Compass`.
-#[derive(Serialize)]
+#[derive(Serialize, Deserialize)]
 pub struct Compass {
     pub header: Header,
     pub heading_rad: f64,
 }
 
 /// `hetsim_msgs/msg/WheelOdometry`.
-#[derive(Serialize)]
+#[derive(Serialize, Deserialize)]
 pub struct WheelOdometry {
     pub header: Header,
     pub left_m: f64,
@@ -334,6 +338,16 @@ pub struct Comms<'a> {
     pub topic: &'a str,
     pub sent: Time,
     pub bytes: u32,
+    #[serde(with = "serde_bytes")]
+    pub payload: &'a [u8],
+}
+
+/// `hetsim_msgs/msg/GpsLocal`.
+#[derive(Serialize, Deserialize)]
+pub struct GpsLocal {
+    pub header: Header,
+    pub position: Vector3,
+    pub sigma_m: f64,
 }
 
 /// The channel's `offered_qos_profiles` metadata, in rosbag2's YAML: reliable and volatile,
@@ -395,6 +409,7 @@ mod tests {
             "hetsim_msgs/msg/Rendezvous",
             "hetsim_msgs/msg/ImageMatch",
             "hetsim_msgs/msg/Comms",
+            "hetsim_msgs/msg/GpsLocal",
         ] {
             let text = definition(schema).unwrap();
             let defined: Vec<&str> = text

@@ -9,29 +9,35 @@ use super::{Sweep, SweepError, SweepRun};
 impl Sweep {
     /// The base scenario with a run's axis values written in.
     pub fn scenario_text(&self, run: &SweepRun) -> Result<String, SweepError> {
-        let fail = |message: String| self.run_error(run, message);
-        let mut table: toml::Table =
-            toml::from_str(&self.base_text).map_err(|e| fail(e.to_string()))?;
-        for (key, value) in self.axes().iter().zip(&run.values) {
-            let segments: Vec<&str> = key.split('.').collect();
-            match segments.as_slice() {
-                ["robots", who, field @ ..] if !field.is_empty() => {
-                    set_override(&mut table, key, |r| name_of(r) == Some(who), field, value)
-                        .map_err(fail)?
-                }
-                ["models", model, field @ ..] if !field.is_empty() => set_override(
-                    &mut table,
-                    key,
-                    |r| r.get("model").and_then(|m| m.as_str()) == Some(model),
-                    field,
-                    value,
-                )
-                .map_err(fail)?,
-                _ => set_path(&mut table, key, &segments, value).map_err(fail)?,
-            }
-        }
-        toml::to_string(&table).map_err(|e| fail(e.to_string()))
+        let axes = self.axes();
+        let settings: Vec<(&str, &toml::Value)> =
+            axes.iter().map(String::as_str).zip(&run.values).collect();
+        apply_settings(&self.base_text, &settings).map_err(|e| self.run_error(run, e))
     }
+}
+
+/// A scenario's text with settings written in: `robots.<robot>.<field>` and
+/// `models.<model>.<field>` into the robots' `overrides`, anything else at its dotted path
+/// (sweep axes, `hetsim replay --set`).
+pub fn apply_settings(base: &str, settings: &[(&str, &toml::Value)]) -> Result<String, String> {
+    let mut table: toml::Table = toml::from_str(base).map_err(|e| e.to_string())?;
+    for &(key, value) in settings {
+        let segments: Vec<&str> = key.split('.').collect();
+        match segments.as_slice() {
+            ["robots", who, field @ ..] if !field.is_empty() => {
+                set_override(&mut table, key, |r| name_of(r) == Some(who), field, value)?
+            }
+            ["models", model, field @ ..] if !field.is_empty() => set_override(
+                &mut table,
+                key,
+                |r| r.get("model").and_then(|m| m.as_str()) == Some(model),
+                field,
+                value,
+            )?,
+            _ => set_path(&mut table, key, &segments, value)?,
+        }
+    }
+    toml::to_string(&table).map_err(|e| e.to_string())
 }
 
 fn name_of(robot: &toml::Table) -> Option<&str> {

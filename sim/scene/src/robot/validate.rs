@@ -104,6 +104,7 @@ impl RobotModel {
                 }
             }
         }
+        self.slam.validate(c)?;
         let p = &self.pilot;
         c.range(
             &["pilot", "cruise_mps"],

@@ -1,0 +1,189 @@
+//! `hetsim replay`: a recording `hetsim run --record` wrote, or a EuRoC dataset, fed to the
+//! robot software with no physics and no rendering; the results folder a live run writes.
+
+use anyhow::{bail, Context, Result};
+use hetsim_engine::replay::euroc_in::BenchSpec;
+use hetsim_engine::replay::{EurocRecording, McapRecording, Recording};
+use hetsim_scene::{load_scenario_text, LoadOptions, Scenario};
+use std::path::{Path, PathBuf};
+
+/// What to replay, and how.
+pub struct ReplayArgs {
+    /// An MCAP recording, or a EuRoC dataset's `mav0` folder.
+    pub source: PathBuf,
+    /// Replay only these robots (default: all; a EuRoC dataset needs exactly one).
+    pub robots: Vec<String>,
+    /// Results folder (default: results/runs/replay-<source name>).
+    pub out: Option<PathBuf>,
+    /// `key=value` settings written into the scenario (`robots.<robot>.<field>`,
+    /// `models.<model>.<field>`, scenario fields), values in TOML syntax.
+    pub set: Vec<String>,
+    /// The scenario to replay into (default for a recording: the one it carries; required
+    /// for a EuRoC dataset).
+    pub scenario: Option<PathBuf>,
+    /// Replay only this many sim seconds.
+    pub duration: Option<f64>,
+    /// No progress bar.
+    pub quiet: bool,
+}
+
+/// `key=value` settings parsed (values as TOML, bare words as strings).
+fn settings(set: &[String]) -> Result<Vec<(String, toml::Value)>> {
+    set.iter()
+        .map(|s| {
+            let (k, v) = s.split_once('=').with_context(|| {
+                format!("--set {s}: expected KEY=VALUE, e.g. robots.dala.slam.sigma_px=1.5")
+            })?;
+            let value = toml::from_str::<toml::Table>(&format!("v = {v}"))
+                .ok()
+                .and_then(|mut t| t.remove("v"))
+                .unwrap_or_else(|| toml::Value::String(v.to_string()));
+            Ok((k.trim().to_string(), value))
+        })
+        .collect()
+}
+
+/// The scenario text with the settings written in, loaded.
+fn load(path: &Path, text: &str, set: &[String], options: LoadOptions) -> Result<Scenario> {
+    let settings = settings(set)?;
+    let refs: Vec<(&str, &toml::Value)> = settings.iter().map(|(k, v)| (k.as_str(), v)).collect();
+    // Unchanged when nothing is set: the same text, the same file hash as the live run's.
+    let text = if refs.is_empty() {
+        text.to_string()
+    } else {
+        hetsim_eval::sweep::apply_settings(text, &refs)
+            .map_err(|e| anyhow::anyhow!("--set: {e}"))?
+    };
+    Ok(load_scenario_text(path, text, &options)?)
+}
+
+/// Replays and writes the results folder; prints `results:` and `digest:`.
+pub fn replay(args: &ReplayArgs) -> Result<hetsim_eval::RunFiles> {
+    let start = crate::bench::wall_clock();
+    let (scenario, mut recording): (Scenario, Box<dyn Recording>) = if args.source.is_dir() {
+        let Some(path) = &args.scenario else {
+            bail!(
+                "{}: a EuRoC dataset carries no scenario: give --scenario FILE and --robot NAME (the robot whose stereo bench it feeds)",
+                args.source.display()
+            );
+        };
+        let text =
+            std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+        let scenario = load(
+            path,
+            &text,
+            &args.set,
+            LoadOptions {
+                duration_secs: args.duration,
+                ..LoadOptions::default()
+            },
+        )?;
+        let [robot] = args.robots.as_slice() else {
+            bail!("a EuRoC dataset feeds one robot: give exactly one --robot NAME");
+        };
+        let r = scenario
+            .robots
+            .iter()
+            .find(|r| r.spec.name == *robot)
+            .with_context(|| format!("--robot {robot}: not a robot of {}", path.display()))?;
+        let bench = hetsim_stacks::stereo_bench(r)
+            .with_context(|| format!("--robot {robot}: its robot file has no stereo bench"))?;
+        let k = bench.intrinsics;
+        let spec = BenchSpec {
+            robot: robot.clone(),
+            bench: bench.name,
+            width: k.width,
+            height: k.height,
+            intrinsics: [k.alpha_u, k.alpha_v, k.u0, k.v0],
+            dt_ns: scenario.clock.dt_ns(),
+        };
+        let euroc = EurocRecording::open(&args.source, spec)?;
+        (scenario, Box::new(euroc))
+    } else {
+        let mcap = McapRecording::open(&args.source)?;
+        let run = mcap.run.clone();
+        let duration = args
+            .duration
+            .map_or(run.duration_secs, |d| d.min(run.duration_secs));
+        let scenario = match &args.scenario {
+            Some(path) => {
+                let text = std::fs::read_to_string(path)
+                    .with_context(|| format!("reading {}", path.display()))?;
+                let options = LoadOptions {
+                    seed: Some(run.seed),
+                    duration_secs: Some(duration),
+                    robot_files: None,
+                };
+                load(path, &text, &args.set, options)?
+            }
+            None => load(
+                &run.scenario_path,
+                &run.scenario_text,
+                &args.set,
+                LoadOptions {
+                    seed: Some(run.seed),
+                    duration_secs: Some(duration),
+                    robot_files: Some(run.robot_files.clone()),
+                },
+            )
+            .with_context(|| {
+                format!(
+                    "the scenario {} carries ({})",
+                    args.source.display(),
+                    run.scenario_path.display()
+                )
+            })?,
+        };
+        (scenario, Box::new(mcap))
+    };
+    let names: Vec<&str> = scenario
+        .robots
+        .iter()
+        .map(|r| r.spec.name.as_str())
+        .collect();
+    for r in &args.robots {
+        if !names.contains(&r.as_str()) {
+            bail!(
+                "--robot {r}: not a robot of the scenario (robots: {})",
+                names.join(", ")
+            );
+        }
+    }
+    let stacks = hetsim_stacks::build_stacks(&scenario, false)
+        .into_iter()
+        .zip(&names)
+        .map(|(s, n)| (args.robots.is_empty() || args.robots.iter().any(|r| r == n)).then_some(s))
+        .collect();
+    let bar = if args.quiet {
+        indicatif::ProgressBar::hidden()
+    } else {
+        crate::exec::progress_bar(&format!("replay {}", scenario.file.name))
+    };
+    let output = hetsim_engine::replay(&scenario, stacks, recording.as_mut(), |tick, total| {
+        bar.set_length(total);
+        bar.set_position(tick);
+    });
+    bar.finish_and_clear();
+    let output = output?;
+    let metrics = hetsim_eval::Metrics::compute(&scenario, &output, None)?;
+    let wall = start.elapsed().as_secs_f64();
+    let timing = serde_json::json!({
+        "wall_secs": wall,
+        "sim_secs": output.sim_secs,
+        "realtime_factor": output.sim_secs / wall.max(1e-9),
+        "replay_of": args.source.display().to_string(),
+    });
+    // A EuRoC dataset is named by the folder above mav0 (frames/<robot>/mav0: the robot).
+    let named = match args.source.file_name() {
+        Some(n) if n == "mav0" => args.source.parent().and_then(Path::file_name),
+        _ => args.source.file_stem(),
+    };
+    let stem = named.map_or("recording".into(), |s| s.to_string_lossy().into_owned());
+    let out = args
+        .out
+        .clone()
+        .unwrap_or_else(|| PathBuf::from("results/runs").join(format!("replay-{stem}")));
+    let files = hetsim_eval::write_run(&scenario, output, &metrics, Some(&out), timing, None)
+        .context("writing results")?;
+    Ok(files)
+}

@@ -1,0 +1,538 @@
+//! Replaying a recording into the robot software (`hetsim replay`): no physics, no rendering.
+//!
+//! The recording's messages are fed tick by tick in the order the live run delivered them: a
+//! message the live run delivered at the end of tick `t - 1` (its MCAP log time is `t`'s
+//! time) is in the inbox of tick `t`, in file order. The robot's oracle, where its robot file
+//! declares one, is derived from the recorded ground truth at the oracle's rate, as the live
+//! run derived it from the physics. Radio messages between replayed robots are not taken from
+//! the recording: each stack's outgoing messages go through the same radio model (same seeded
+//! streams, range judged on the recorded true positions), so a changed parameter changes what
+//! the other robot receives. A robot that is not replayed (`--robot`) still speaks: its
+//! recorded deliveries reach the replayed robots as recorded.
+//!
+//! Every command a replayed stack sends is compared with the recorded one; the first
+//! difference stops the replay with its stamp, robot and topic (a regression check for robot
+//! software, and a proof that a closed-loop mission saw what it saw live). Everything the
+//! stacks receive and send goes into the run digest in the live run's order, so the replay of
+//! an unchanged run has the live run's message digest and stack digests.
+
+use crate::comms::Comms;
+use crate::output::{RobotOutcome, RunOutput};
+use crate::record::RecordedOutcome;
+use crate::run::{encode, hash_encoded, oracles};
+use hetsim_core::{RunDigest, Streams};
+use hetsim_msgs::{Command, InputError, Pose, PoseStamped, RobotStack, SensorMsg};
+use hetsim_scene::{Scenario, Sensor};
+use rayon::prelude::*;
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+pub(crate) mod cdr_in;
+pub mod euroc_in;
+mod mcap_in;
+
+pub use euroc_in::EurocRecording;
+pub use mcap_in::McapRecording;
+
+/// The run a recording holds, as its `hetsim.run` metadata describes it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RunDescription {
+    /// The scenario file's path when it was recorded.
+    pub scenario_path: PathBuf,
+    /// The scenario file's text.
+    pub scenario_text: String,
+    /// The seed in force.
+    pub seed: u64,
+    /// The duration in force, seconds.
+    pub duration_secs: f64,
+    /// Every robot file's text, by model.
+    pub robot_files: BTreeMap<String, String>,
+}
+
+/// Something recorded.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Event {
+    /// A robot's true pose.
+    Truth {
+        /// The robot.
+        robot: String,
+        /// When, nanoseconds.
+        stamp_ns: u64,
+        /// `world_from_body`.
+        pose: Pose,
+    },
+    /// A robot's command.
+    Command {
+        /// The robot.
+        robot: String,
+        /// When, nanoseconds.
+        stamp_ns: u64,
+        /// What it sent.
+        cmd: Command,
+    },
+    /// A message a robot received.
+    Sensor {
+        /// The robot.
+        robot: String,
+        /// `<robot>/<sensor>`.
+        topic: String,
+        /// The message.
+        msg: SensorMsg,
+    },
+}
+
+/// A recorded event and when it reached the robot (MCAP log time).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Logged {
+    /// Delivery time, nanoseconds.
+    pub log_ns: u64,
+    /// What.
+    pub event: Event,
+}
+
+/// A source of recorded events in delivery order.
+pub trait Recording {
+    /// The next event, `None` at the end.
+    fn next_logged(&mut self) -> Result<Option<Logged>, ReplayError>;
+    /// What the physics measured per robot, if the recording says.
+    fn outcome(&self) -> Option<&[RecordedOutcome]>;
+}
+
+impl Recording for McapRecording {
+    fn next_logged(&mut self) -> Result<Option<Logged>, ReplayError> {
+        McapRecording::next_logged(self)
+    }
+    fn outcome(&self) -> Option<&[RecordedOutcome]> {
+        self.outcome.as_ref().map(|(_, r)| r.as_slice())
+    }
+}
+
+/// Why a replay stopped.
+#[derive(Debug, thiserror::Error)]
+pub enum ReplayError {
+    /// A file could not be read.
+    #[error("{}: {reason}", path.display())]
+    File {
+        /// The file.
+        path: PathBuf,
+        /// What failed.
+        reason: String,
+    },
+    /// A recording is damaged or is not one hetsim reads.
+    #[error("{}: at byte {offset}: {what}", path.display())]
+    Corrupt {
+        /// The file.
+        path: PathBuf,
+        /// Byte offset of the record at fault (of its chunk, for a message in a chunk).
+        offset: u64,
+        /// What is wrong.
+        what: String,
+    },
+    /// A dataset file has a bad row, or a file it lists is missing or unreadable.
+    #[error("{}: row {row}: {what}", path.display())]
+    Row {
+        /// The file.
+        path: PathBuf,
+        /// 1-based row (the header is row 1).
+        row: usize,
+        /// What is wrong.
+        what: String,
+    },
+    /// The recording and the scenario replayed into do not fit each other.
+    #[error("{0}")]
+    Mismatch(String),
+    /// A replayed stack sent a command other than the recorded one.
+    #[error(
+        "replay diverged at t = {:.3} s: robot {robot} sent {replayed} on /{robot}/cmd, the recording has {recorded}",
+        *stamp_ns as f64 * 1e-9
+    )]
+    Diverged {
+        /// The robot.
+        robot: String,
+        /// When, nanoseconds.
+        stamp_ns: u64,
+        /// The recorded command.
+        recorded: String,
+        /// The replayed one.
+        replayed: String,
+    },
+    /// A robot's software refused a recorded message.
+    #[error("robot {robot} refused a message: {error}")]
+    Input {
+        /// The robot.
+        robot: String,
+        /// What it refused.
+        error: Box<InputError>,
+    },
+}
+
+impl ReplayError {
+    /// A file that could not be opened or read.
+    pub fn file(path: &Path, e: impl std::fmt::Display) -> Self {
+        ReplayError::File {
+            path: path.to_path_buf(),
+            reason: e.to_string(),
+        }
+    }
+}
+
+/// Replays `recording` into `stacks` (scenario order; `None`: that robot is not replayed)
+/// until the scenario's duration, the end of the recording, or two seconds after a stack's
+/// mission is over, as a live run ends. `progress(tick, total)` as in [`crate::run`].
+pub fn replay(
+    scenario: &Scenario,
+    mut stacks: Vec<Option<Box<dyn RobotStack>>>,
+    recording: &mut dyn Recording,
+    mut progress: impl FnMut(u64, u64) + Send,
+) -> Result<RunOutput, ReplayError> {
+    let n = scenario.robots.len();
+    if stacks.len() != n {
+        return Err(ReplayError::Mismatch(format!(
+            "{} robot stacks for {n} robots",
+            stacks.len()
+        )));
+    }
+    let clock = scenario.clock;
+    let names: Vec<String> = scenario
+        .robots
+        .iter()
+        .map(|r| r.spec.name.clone())
+        .collect();
+    let active: Vec<bool> = stacks.iter().map(Option::is_some).collect();
+    let mut comms = Comms::new(
+        scenario.file.comms.clone(),
+        clock,
+        names.clone(),
+        Streams::new(scenario.seed),
+    );
+    let mut stack_digests: Vec<RunDigest> = (0..n).map(|_| RunDigest::new()).collect();
+    let next = recording.next_logged()?;
+    let mut feed = Feed {
+        scenario,
+        recording,
+        next,
+        oracles: oracles(scenario),
+        lasers: laser_angles(scenario),
+        truth_period: clock
+            .period_ticks(scenario.file.truth_rate_hz)
+            .expect("validated truth rate"),
+        active: active.clone(),
+        digest: RunDigest::new(),
+        counts: BTreeMap::new(),
+        truth: vec![Vec::new(); n],
+        position: vec![[0.0; 3]; n],
+        last_pose: vec![None; n],
+        inboxes: vec![Vec::new(); n],
+        radio: Vec::new(),
+        recorded_cmd: vec![None; n],
+    };
+    let total = clock.ticks_in(scenario.duration_secs);
+    let report_every = clock.ticks_in(1.0).min(total / 100).max(1);
+    let mut end = total;
+    let linger = clock.ticks_in(2.0);
+    let mut ticks = 0;
+    for tick in 0..total {
+        if tick >= end {
+            break;
+        }
+        let now = clock.time_ns(tick);
+        // 1. Everything delivered for this tick, in the live order.
+        feed.drain(tick)?;
+        ticks = tick + 1;
+        // 2. The stacks, in parallel; the first refusal in robot order stops the replay.
+        let results: Vec<Option<Result<Command, InputError>>> = stacks
+            .par_iter_mut()
+            .zip(feed.inboxes.par_iter_mut())
+            .map(|(stack, inbox)| {
+                let cmd = stack.as_mut().map(|s| s.step(now, inbox));
+                inbox.clear();
+                cmd
+            })
+            .collect();
+        let mut statuses = Vec::with_capacity(n);
+        for (i, result) in results.into_iter().enumerate() {
+            let Some(result) = result else {
+                statuses.push(None);
+                continue;
+            };
+            let cmd = result.map_err(|error| ReplayError::Input {
+                robot: names[i].clone(),
+                error: Box::new(error),
+            })?;
+            if let Some(recorded) = feed.recorded_cmd[i].take() {
+                if recorded != cmd {
+                    return Err(ReplayError::Diverged {
+                        robot: names[i].clone(),
+                        stamp_ns: now,
+                        recorded: format!("{recorded:?}"),
+                        replayed: format!("{cmd:?}"),
+                    });
+                }
+            }
+            let stack = stacks[i].as_mut().expect("an active robot has a stack");
+            let topic = format!("{}/cmd", names[i]);
+            let bytes = encode(&cmd);
+            feed.digest.record(&topic, &bytes);
+            stack_digests[i].record(&topic, &bytes);
+            let radio_topic = format!("{}/radio", names[i]);
+            for msg in stack.outbox() {
+                let bytes = encode(&msg);
+                feed.digest.record(&radio_topic, &bytes);
+                stack_digests[i].record(&radio_topic, &bytes);
+                comms.send(tick, i, msg, &feed.position);
+            }
+            statuses.push(Some(stack.status()));
+        }
+        // 3. Radio deliveries at the end of this tick, fed at the next.
+        for (to, delivered) in comms.deliver(tick + 1) {
+            if active[to] {
+                feed.radio.push((to, SensorMsg::Comms(delivered)));
+            }
+        }
+        if end == total && statuses.iter().flatten().any(|s| s.mission_over) {
+            end = (tick + 1 + linger).min(total);
+        }
+        if tick % report_every == 0 {
+            progress(tick, total);
+        }
+    }
+    progress(total, total);
+    // What the live run delivered at the end of its last tick: digested and counted, as there.
+    feed.drain(ticks)?;
+    let Feed {
+        recording,
+        digest,
+        counts,
+        truth,
+        last_pose,
+        ..
+    } = feed;
+    let outcome = recording.outcome();
+    let robots = scenario
+        .robots
+        .iter()
+        .enumerate()
+        .map(|(i, r)| {
+            let measured = outcome.and_then(|o| o.iter().find(|m| m.name == r.spec.name));
+            RobotOutcome {
+                name: r.spec.name.clone(),
+                model: r.spec.model.clone(),
+                distance_m: measured.map_or(0.0, |m| m.distance_m),
+                collisions: measured.map_or(0, |m| m.collisions),
+                status: stacks[i].as_ref().map(|s| s.status()).unwrap_or_default(),
+                final_position_m: last_pose[i].map_or([0.0; 3], |p| p.translation.vector.into()),
+                stack_digest: if active[i] {
+                    stack_digests[i].hex()
+                } else {
+                    String::new()
+                },
+            }
+        })
+        .collect();
+    Ok(RunOutput {
+        ticks,
+        sim_secs: clock.time_secs(ticks),
+        records: digest.records(),
+        robots,
+        truth: names.iter().cloned().zip(truth).collect(),
+        artifacts: names
+            .iter()
+            .cloned()
+            .zip(
+                stacks
+                    .iter()
+                    .map(|s| s.as_ref().map(|s| s.artifacts()).unwrap_or_default()),
+            )
+            .collect(),
+        messages: counts,
+        comms: comms.stats.clone(),
+        digest,
+        adapter: None,
+    })
+}
+
+/// The recording's events turned into the robots' inboxes, tick by tick.
+struct Feed<'a> {
+    scenario: &'a Scenario,
+    recording: &'a mut dyn Recording,
+    /// The next event, read ahead.
+    next: Option<Logged>,
+    oracles: Vec<Option<(String, u64)>>,
+    lasers: BTreeMap<String, (f64, f64, f64)>,
+    truth_period: u64,
+    active: Vec<bool>,
+    digest: RunDigest,
+    counts: BTreeMap<String, u64>,
+    /// Truth at the truth rate, for evaluation.
+    truth: Vec<Vec<(u64, Pose)>>,
+    /// Where each robot is now (the radio's range).
+    position: Vec<[f64; 3]>,
+    last_pose: Vec<Option<Pose>>,
+    inboxes: Vec<Vec<SensorMsg>>,
+    /// Radio deliveries for the next tick, in arrival order: (robot, message).
+    radio: Vec<(usize, SensorMsg)>,
+    /// The recorded command of this tick, per robot.
+    recorded_cmd: Vec<Option<Command>>,
+}
+
+impl Feed<'_> {
+    fn robot_of(&self, name: &str) -> Result<usize, ReplayError> {
+        self.scenario
+            .robots
+            .iter()
+            .position(|r| r.spec.name == name)
+            .ok_or_else(|| {
+                let names: Vec<&str> =
+                    self.scenario.robots.iter().map(|r| r.spec.name.as_str()).collect();
+                ReplayError::Mismatch(format!(
+                    "the recording has messages of robot \"{name}\", which the scenario does not have (robots: {})",
+                    names.join(", ")
+                ))
+            })
+    }
+
+    /// Posts everything delivered for `tick` (logged at or before its time), in the live
+    /// order: the recording's messages in file order, then the radio model's deliveries.
+    fn drain(&mut self, tick: u64) -> Result<(), ReplayError> {
+        let clock = self.scenario.clock;
+        let now = clock.time_ns(tick);
+        while let Some(logged) = self.next.take_if(|l| l.log_ns <= now) {
+            self.next = self.recording.next_logged()?;
+            match logged.event {
+                Event::Truth {
+                    robot,
+                    stamp_ns,
+                    pose,
+                } => {
+                    let i = self.robot_of(&robot)?;
+                    self.position[i] = pose.translation.vector.into();
+                    self.last_pose[i] = Some(pose);
+                    if stamp_ns % (self.truth_period * clock.dt_ns()) == 0 {
+                        self.truth[i].push((stamp_ns, pose));
+                    }
+                    let due = self.oracles[i]
+                        .as_ref()
+                        .filter(|(_, p)| now == stamp_ns && tick % p == 0);
+                    if let (true, Some((topic, _))) = (self.active[i], due) {
+                        let msg = SensorMsg::TruthPose(PoseStamped { stamp_ns, pose });
+                        let topic = topic.clone();
+                        self.post(i, &topic, msg);
+                    }
+                }
+                Event::Command { robot, cmd, .. } => {
+                    let i = self.robot_of(&robot)?;
+                    self.recorded_cmd[i] = Some(cmd);
+                }
+                Event::Sensor { robot, topic, msg } => {
+                    let i = self.robot_of(&robot)?;
+                    if !self.active[i] {
+                        continue;
+                    }
+                    let msg = match msg {
+                        SensorMsg::Comms(d) => {
+                            // Deliveries from replayed robots come from the radio model.
+                            if self.robot_of(&d.from).is_ok_and(|f| self.active[f]) {
+                                continue;
+                            }
+                            SensorMsg::Comms(d)
+                        }
+                        SensorMsg::LaserScan(s) => exact_laser(&self.lasers, &topic, s)?,
+                        other => other,
+                    };
+                    self.post(i, &topic, msg);
+                }
+            }
+        }
+        for (i, msg) in std::mem::take(&mut self.radio) {
+            let topic = format!("{}/radio", self.scenario.robots[i].spec.name);
+            self.post(i, &topic, msg);
+        }
+        Ok(())
+    }
+
+    /// A message into an inbox, the digest and the counts, as the live run posts it.
+    fn post(&mut self, robot: usize, topic: &str, msg: SensorMsg) {
+        post(
+            &mut self.digest,
+            &mut self.counts,
+            &mut self.inboxes[robot],
+            topic,
+            msg,
+        );
+    }
+}
+
+/// A message into an inbox, the digest and the counts, as the live run posts it.
+fn post(
+    digest: &mut RunDigest,
+    counts: &mut BTreeMap<String, u64>,
+    inbox: &mut Vec<SensorMsg>,
+    topic: &str,
+    msg: SensorMsg,
+) {
+    if let SensorMsg::Image(_) = &msg {
+        digest.record_hashed(topic, hash_encoded(&msg));
+    } else {
+        digest.record(topic, &encode(&msg));
+    }
+    *counts.entry(topic.to_string()).or_default() += 1;
+    inbox.push(msg);
+}
+
+/// Each laser's exact angles and range (`<robot>/<laser>` -> (first angle, increment,
+/// range)), as the sensor computes them from the robot file.
+fn laser_angles(scenario: &Scenario) -> BTreeMap<String, (f64, f64, f64)> {
+    let mut out = BTreeMap::new();
+    for r in &scenario.robots {
+        for s in &r.model.sensors {
+            if let Sensor::Laser {
+                name,
+                fov_deg,
+                resolution_deg,
+                max_range_m,
+                ..
+            } = s
+            {
+                out.insert(
+                    format!("{}/{name}", r.spec.name),
+                    (
+                        -fov_deg.to_radians() / 2.0,
+                        resolution_deg.to_radians(),
+                        *max_range_m,
+                    ),
+                );
+            }
+        }
+    }
+    out
+}
+
+/// A recorded scan with the robot file's exact angles (`sensor_msgs/LaserScan` keeps them as
+/// `float32`), refused if they are not the same angles.
+fn exact_laser(
+    lasers: &BTreeMap<String, (f64, f64, f64)>,
+    topic: &str,
+    mut scan: hetsim_msgs::LaserScan,
+) -> Result<SensorMsg, ReplayError> {
+    let Some(&(min, step, range)) = lasers.get(topic) else {
+        return Err(ReplayError::Mismatch(format!(
+            "the recording has laser scans on /{topic}, a laser the scenario's robot file does not declare"
+        )));
+    };
+    let close = |a: f64, b: f64| (a - b).abs() <= 1e-6 * b.abs().max(1.0);
+    if !(close(scan.angle_min_rad, min)
+        && close(scan.angle_increment_rad, step)
+        && close(scan.range_max_m, range))
+    {
+        return Err(ReplayError::Mismatch(format!(
+            "/{topic}: the recorded scan's angles and range ({}, {}, {}) are not the robot file's ({min}, {step}, {range})",
+            scan.angle_min_rad, scan.angle_increment_rad, scan.range_max_m
+        )));
+    }
+    (
+        scan.angle_min_rad,
+        scan.angle_increment_rad,
+        scan.range_max_m,
+    ) = (min, step, range);
+    Ok(SensorMsg::LaserScan(scan))
+}

@@ -1,0 +1,334 @@
+//! A EuRoC dataset (`mav0/cam0`, `cam1`, optionally `state_groundtruth_estimate0`) as stereo
+//! input for one robot's VO and SLAM: `cam0` is the bench's left camera, `cam1` its right.
+//!
+//! The robot file describes the bench the robot software assumes; each camera's `sensor.yaml`
+//! must agree with it (resolution, pinhole intrinsics, no distortion: hetsim's VO takes
+//! rectified images), or replay refuses the dataset naming the file and the field. Stamps are
+//! used as they are when they are sim times (hetsim's own dumps); a dataset stamped with wall
+//! time (the first stamp more than a day) is shifted to start at its first image. Each image
+//! reaches the robot at the tick nearest its stamp, and must be on the scenario's tick grid
+//! within half a tick.
+//!
+//! Every row of `data.csv` is checked and every image it lists must exist before replay
+//! starts; a bad row or a missing image is refused with the file and row.
+
+use super::{Event, Logged, Recording, ReplayError};
+use crate::record::RecordedOutcome;
+use hetsim_msgs::{Image, PixelEncoding, SensorMsg};
+use std::collections::VecDeque;
+use std::path::{Path, PathBuf};
+
+/// The bench the robot file describes.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BenchSpec {
+    /// The robot replayed into.
+    pub robot: String,
+    /// The bench's name (images go to `<robot>/<bench>/left|right`).
+    pub bench: String,
+    /// Image size, pixels.
+    pub width: u32,
+    /// Image height, pixels.
+    pub height: u32,
+    /// Pinhole intrinsics `[fu, fv, cu, cv]`.
+    pub intrinsics: [f64; 4],
+    /// The tick, nanoseconds.
+    pub dt_ns: u64,
+}
+
+enum Item {
+    Truth(hetsim_msgs::Pose),
+    Pair(PathBuf, PathBuf),
+}
+
+/// A EuRoC dataset, open for replay.
+pub struct EurocRecording {
+    spec: BenchSpec,
+    items: VecDeque<(u64, u64, Item)>,
+    pending: VecDeque<Logged>,
+}
+
+fn row_error(path: &Path, row: usize, what: impl Into<String>) -> ReplayError {
+    ReplayError::Row {
+        path: path.to_path_buf(),
+        row,
+        what: what.into(),
+    }
+}
+
+/// The rows of a EuRoC CSV (header skipped): row number (1-based, header = 1) and fields.
+fn rows(path: &Path) -> Result<Vec<(usize, Vec<String>)>, ReplayError> {
+    let text = std::fs::read_to_string(path).map_err(|e| ReplayError::file(path, e))?;
+    Ok(text
+        .lines()
+        .enumerate()
+        .filter(|(_, l)| !l.trim().is_empty() && !l.starts_with('#'))
+        .map(|(i, l)| (i + 1, l.split(',').map(|f| f.trim().to_string()).collect()))
+        .collect())
+}
+
+fn stamp(path: &Path, row: usize, field: &str) -> Result<u64, ReplayError> {
+    field.parse::<u64>().map_err(|_| {
+        row_error(
+            path,
+            row,
+            format!("timestamp \"{field}\": a whole number of nanoseconds"),
+        )
+    })
+}
+
+/// `key: [a, b, ...]` of a `sensor.yaml`, as numbers.
+fn yaml_list(path: &Path, text: &str, key: &str) -> Result<Vec<f64>, ReplayError> {
+    let (row, line) = text
+        .lines()
+        .enumerate()
+        .find(|(_, l)| l.trim_start().starts_with(&format!("{key}:")))
+        .ok_or_else(|| row_error(path, 0, format!("no \"{key}\" field")))?;
+    let list = line
+        .split_once('[')
+        .and_then(|(_, r)| r.split_once(']'))
+        .map(|(l, _)| l)
+        .ok_or_else(|| row_error(path, row + 1, format!("{key}: a list [a, b, ...]")))?;
+    list.split(',')
+        .filter(|f| !f.trim().is_empty())
+        .map(|f| {
+            f.trim().parse::<f64>().map_err(|_| {
+                row_error(
+                    path,
+                    row + 1,
+                    format!("{key}: \"{}\" is not a number", f.trim()),
+                )
+            })
+        })
+        .collect()
+}
+
+/// Checks a camera's `sensor.yaml` against the bench.
+fn check_camera(dir: &Path, spec: &BenchSpec) -> Result<(), ReplayError> {
+    let path = dir.join("sensor.yaml");
+    let text = std::fs::read_to_string(&path).map_err(|e| ReplayError::file(&path, e))?;
+    let mismatch = |field: &str, got: String, want: String| {
+        ReplayError::Mismatch(format!(
+            "{}: {field} {got}, but robot {}'s bench {} has {want} in its robot file; hetsim's VO assumes the robot file's camera",
+            path.display(),
+            spec.robot,
+            spec.bench
+        ))
+    };
+    let res = yaml_list(&path, &text, "resolution")?;
+    if res != [spec.width as f64, spec.height as f64] {
+        return Err(mismatch(
+            "resolution",
+            format!("{res:?}"),
+            format!("[{}, {}]", spec.width, spec.height),
+        ));
+    }
+    let k = yaml_list(&path, &text, "intrinsics")?;
+    let close = k.len() == 4
+        && k.iter()
+            .zip(spec.intrinsics)
+            .all(|(a, b)| (a - b).abs() <= 1e-3 * b.abs().max(1.0));
+    if !close {
+        return Err(mismatch(
+            "intrinsics",
+            format!("{k:?}"),
+            format!("{:?}", spec.intrinsics),
+        ));
+    }
+    if let Ok(d) = yaml_list(&path, &text, "distortion_coefficients") {
+        if d.iter().any(|c| *c != 0.0) {
+            return Err(mismatch(
+                "distortion_coefficients",
+                format!("{d:?}"),
+                "rectified images (all 0)".into(),
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// A camera's rows: stamp and image path, every image checked to exist.
+fn camera(dir: &Path) -> Result<Vec<(u64, PathBuf)>, ReplayError> {
+    let csv = dir.join("data.csv");
+    let mut out = Vec::new();
+    for (row, fields) in rows(&csv)? {
+        let [t, name] = fields.as_slice() else {
+            return Err(row_error(
+                &csv,
+                row,
+                format!("{} fields: timestamp,filename", fields.len()),
+            ));
+        };
+        let image = dir.join("data").join(name);
+        if !image.is_file() {
+            return Err(row_error(
+                &csv,
+                row,
+                format!("image {name} is missing ({})", image.display()),
+            ));
+        }
+        out.push((stamp(&csv, row, t)?, image));
+    }
+    if out.is_empty() {
+        return Err(row_error(&csv, 1, "no images listed"));
+    }
+    Ok(out)
+}
+
+impl EurocRecording {
+    /// Opens the dataset at `mav0` for the bench `spec`.
+    pub fn open(mav0: &Path, spec: BenchSpec) -> Result<Self, ReplayError> {
+        if !mav0.join("cam0").is_dir() || !mav0.join("cam1").is_dir() {
+            return Err(ReplayError::file(
+                mav0,
+                "not a EuRoC dataset folder: it needs cam0/ and cam1/ (give the mav0 folder)",
+            ));
+        }
+        for cam in ["cam0", "cam1"] {
+            check_camera(&mav0.join(cam), &spec)?;
+        }
+        let (left, right) = (camera(&mav0.join("cam0"))?, camera(&mav0.join("cam1"))?);
+        let shift = if left[0].0 > 86_400_000_000_000 {
+            left[0].0
+        } else {
+            0
+        };
+        let dt = spec.dt_ns;
+        let on_grid = |path: &Path, row: usize, t: u64| -> Result<u64, ReplayError> {
+            let rel = t.checked_sub(shift).ok_or_else(|| {
+                row_error(
+                    path,
+                    row,
+                    format!("timestamp {t} is before the first image's"),
+                )
+            })?;
+            let tick = (rel + dt / 2) / dt;
+            Ok(tick * dt)
+        };
+        let cam1 = mav0.join("cam1/data.csv");
+        let mut items = Vec::new();
+        let right_at: std::collections::BTreeMap<u64, &PathBuf> =
+            right.iter().map(|(t, p)| (*t, p)).collect();
+        for (row, (t, l)) in left.iter().enumerate() {
+            let r = right_at.get(t).ok_or_else(|| {
+                row_error(
+                    &cam1,
+                    0,
+                    format!(
+                        "no image at timestamp {t}, which cam0/data.csv row {} has",
+                        row + 2
+                    ),
+                )
+            })?;
+            let log = on_grid(&mav0.join("cam0/data.csv"), row + 2, *t)?;
+            items.push((log, 1, Item::Pair(l.clone(), (*r).clone())));
+        }
+        let truth_csv = mav0.join("state_groundtruth_estimate0/data.csv");
+        if truth_csv.is_file() {
+            for (row, f) in rows(&truth_csv)? {
+                if f.len() < 8 {
+                    return Err(row_error(
+                        &truth_csv,
+                        row,
+                        format!("{} fields: at least timestamp, p (3), q (w x y z)", f.len()),
+                    ));
+                }
+                let t = stamp(&truth_csv, row, &f[0])?;
+                let v: Vec<f64> = f[1..8]
+                    .iter()
+                    .map(|x| {
+                        x.parse::<f64>().map_err(|_| {
+                            row_error(&truth_csv, row, format!("\"{x}\" is not a number"))
+                        })
+                    })
+                    .collect::<Result<_, _>>()?;
+                if t < shift {
+                    continue;
+                }
+                let q = nalgebra::UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(
+                    v[3], v[4], v[5], v[6],
+                ));
+                let pose = nalgebra::Isometry3::from_parts(
+                    nalgebra::Translation3::new(v[0], v[1], v[2]),
+                    q,
+                );
+                items.push((on_grid(&truth_csv, row, t)?, 0, Item::Truth(pose)));
+            }
+        }
+        // Truth before images at the same tick, as a live run delivers them.
+        items.sort_by_key(|(log, order, _)| (*log, *order));
+        Ok(Self {
+            spec,
+            items: items
+                .into_iter()
+                .map(|(log, _, item)| (log, log, item))
+                .collect(),
+            pending: VecDeque::new(),
+        })
+    }
+
+    fn image(&self, path: &Path, stamp_ns: u64, eye: &str) -> Result<SensorMsg, ReplayError> {
+        let img = image::open(path).map_err(|e| ReplayError::file(path, e))?;
+        let (encoding, data) = match img {
+            image::DynamicImage::ImageLuma8(g) => (PixelEncoding::Mono8, g.into_raw()),
+            image::DynamicImage::ImageRgb8(c) => (PixelEncoding::Rgb8, c.into_raw()),
+            other => (PixelEncoding::Mono8, other.to_luma8().into_raw()),
+        };
+        let (w, h) = (self.spec.width, self.spec.height);
+        let size = data.len() as u64 / encoding.channels() as u64;
+        if size != w as u64 * h as u64 {
+            return Err(ReplayError::Mismatch(format!(
+                "{}: {size} pixels, the bench's {w} x {h} expected",
+                path.display()
+            )));
+        }
+        Ok(SensorMsg::Image(Image {
+            stamp_ns,
+            sensor: format!("{}/{eye}", self.spec.bench),
+            width: w,
+            height: h,
+            encoding,
+            data,
+        }))
+    }
+}
+
+impl Recording for EurocRecording {
+    fn next_logged(&mut self) -> Result<Option<Logged>, ReplayError> {
+        if let Some(l) = self.pending.pop_front() {
+            return Ok(Some(l));
+        }
+        let Some((log_ns, stamp_ns, item)) = self.items.pop_front() else {
+            return Ok(None);
+        };
+        let robot = self.spec.robot.clone();
+        let event = match item {
+            Item::Truth(pose) => Event::Truth {
+                robot,
+                stamp_ns,
+                pose,
+            },
+            Item::Pair(left, right) => {
+                let topic = |eye: &str| format!("{}/{}/{eye}", self.spec.robot, self.spec.bench);
+                let right = self.image(&right, stamp_ns, "right")?;
+                self.pending.push_back(Logged {
+                    log_ns,
+                    event: Event::Sensor {
+                        robot: robot.clone(),
+                        topic: topic("right"),
+                        msg: right,
+                    },
+                });
+                Event::Sensor {
+                    robot,
+                    topic: topic("left"),
+                    msg: self.image(&left, stamp_ns, "left")?,
+                }
+            }
+        };
+        Ok(Some(Logged { log_ns, event }))
+    }
+
+    fn outcome(&self) -> Option<&[RecordedOutcome]> {
+        None
+    }
+}

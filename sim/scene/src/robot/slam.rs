@@ -1,0 +1,55 @@
+//! The `[slam]` table of a robot file: tuning of the robot's SLAM software (seed 001), each
+//! field optional; an absent field keeps the seed's value for the robot's kind. It is what a
+//! parameter study changes, in a scenario's `overrides`, a sweep's axes or
+//! `hetsim replay --set`.
+
+use crate::check::Checker;
+use crate::SceneError;
+use serde::{Deserialize, Serialize};
+
+/// Tuning of the SLAM software.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SlamTuning {
+    /// Pixel noise of an observation in the local EKF, pixels.
+    #[serde(default)]
+    pub sigma_px: Option<f64>,
+    /// Points per sub-map before a new one starts (seed: 100).
+    #[serde(default)]
+    pub max_landmarks: Option<u32>,
+    /// Points kept in each region of the 3 x 3 image partition (seed: 2).
+    #[serde(default)]
+    pub per_region: Option<u32>,
+    /// Lines on (`false`: points only).
+    #[serde(default)]
+    pub lines: Option<bool>,
+    /// New lines from segments longer than this in a 1024-pixel-wide image, pixels (seed: 60).
+    #[serde(default)]
+    pub min_line_px: Option<f64>,
+    /// Image matches are accepted within this chi-square (6 degrees of freedom) of the graph's
+    /// prediction.
+    #[serde(default)]
+    pub match_gate_chi2: Option<f64>,
+}
+
+impl SlamTuning {
+    /// Checks every value given against its allowed range.
+    pub fn validate(&self, c: &Checker) -> Result<(), SceneError> {
+        if let Some(v) = self.sigma_px {
+            c.range(&["slam", "sigma_px"], v, 0.01, 100.0)?;
+        }
+        if let Some(v) = self.max_landmarks {
+            c.range(&["slam", "max_landmarks"], v as f64, 1.0, 10_000.0)?;
+        }
+        if let Some(v) = self.per_region {
+            c.range(&["slam", "per_region"], v as f64, 1.0, 1_000.0)?;
+        }
+        if let Some(v) = self.min_line_px {
+            c.range(&["slam", "min_line_px"], v, 1.0, 10_000.0)?;
+        }
+        if let Some(v) = self.match_gate_chi2 {
+            c.range(&["slam", "match_gate_chi2"], v, 0.01, 1e6)?;
+        }
+        Ok(())
+    }
+}
