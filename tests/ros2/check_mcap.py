@@ -65,7 +65,8 @@ def main() -> int:
                 if a[0] * 1_000_000_000 + a[1] != message.log_time:
                     failures.append(f"{channel.topic}: stamp {a} vs log time {message.log_time}")
             if schema.name == "sensor_msgs/msg/Image":
-                if len(ros.data) != ros.step * ros.height or ros.encoding != "rgb8":
+                channels = {"rgb8": 3, "mono8": 1}.get(ros.encoding)
+                if channels is None or ros.step != channels * ros.width or len(ros.data) != ros.step * ros.height:
                     failures.append(f"{channel.topic}: image {ros.width}x{ros.height} {ros.encoding}, {len(ros.data)} bytes")
     delivered = json.loads((results / "metrics.json").read_text())["messages"]
     for topic, n in sorted(delivered.items()):

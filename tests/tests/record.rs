@@ -157,6 +157,7 @@ struct Comms {
     topic: String,
     sent: Time,
     bytes: u32,
+    payload: Vec<u8>,
 }
 
 /// Decodes a CDR message (encapsulation CDR_LE) and checks it used every byte but the final
@@ -283,12 +284,15 @@ fn a_ros2_recording_of_the_lab_decodes_with_exact_counts() {
             assert_eq!(r.topics[&format!("/{topic}")].3.len() as u64, *n, "{topic}");
         }
     }
-    // 50 Hz truth for 10 s plus the initial pose, a /tf per truth sample and robot.
+    // Truth at every 10 ms tick for 10 s plus the initial pose (replay's radio needs the
+    // positions the live radio saw), a /tf per truth sample and robot; the run keeps 50 Hz.
     let truth = of(&r, "/parent/truth", "geometry_msgs/msg/PoseStamped");
-    assert_eq!(truth.len(), 501);
-    assert_eq!(of(&r, "/tf", "tf2_msgs/msg/TFMessage").len(), 4 * 501);
+    assert_eq!(truth.len(), 1001);
+    assert_eq!(of(&r, "/tf", "tf2_msgs/msg/TFMessage").len(), 4 * 1001);
     let true_poses = result.truth_of("parent").unwrap();
-    for ((t, data), (stamp, pose)) in truth.iter().zip(true_poses) {
+    assert_eq!(true_poses.len(), 501);
+    let kept = truth.iter().filter(|(t, _)| t % 20_000_000 == 0);
+    for ((t, data), (stamp, pose)) in kept.zip(true_poses) {
         let m: PoseStamped = decode("/parent/truth", data);
         assert_eq!(
             (*t, stamp_ns(&m.header), m.header.frame_id.as_str()),
@@ -393,6 +397,11 @@ fn a_ros2_recording_of_the_lab_decodes_with_exact_counts() {
             for (_, data) in msgs {
                 let m: Comms = decode(t, data);
                 assert!(t.contains(&m.to) && m.from != m.to && m.bytes > 0 && !m.topic.is_empty());
+                assert_eq!(
+                    m.payload.len(),
+                    m.bytes as usize,
+                    "the bytes sent are recorded"
+                );
                 assert!(
                     stamp_ns(&m.header)
                         >= m.sent.sec as u64 * 1_000_000_000 + m.sent.nanosec as u64
@@ -443,7 +452,8 @@ fn a_ros2_recording_of_the_village_carries_raw_images_imu_gps_and_rendezvous() {
             assert_eq!(r.topics[&format!("/{topic}")].3.len() as u64, *n, "{topic}");
         }
     }
-    // Images: raw rgb8, 10 Hz, the resolved resolution (the scenario halves both benches).
+    // Images: raw mono8 (the benches deliver grey), 10 Hz, the resolved resolution (the
+    // scenario halves both benches).
     for side in ["left", "right"] {
         let topic = format!("/ressac/stereo/{side}");
         let images = of(&r, &topic, "sensor_msgs/msg/Image");
@@ -452,9 +462,9 @@ fn a_ros2_recording_of_the_village_carries_raw_images_imu_gps_and_rendezvous() {
             let m: Image = decode(&topic, data);
             assert_eq!(
                 (m.width, m.height, m.encoding.as_str(), m.is_bigendian),
-                (512, 384, "rgb8", 0)
+                (512, 384, "mono8", 0)
             );
-            assert_eq!(m.step, 3 * m.width);
+            assert_eq!(m.step, m.width);
             assert_eq!(m.data.len(), (m.step * m.height) as usize);
             assert_eq!(stamp_ns(&m.header), *t);
             assert_eq!(m.header.frame_id, format!("ressac/stereo_{side}"));
@@ -530,6 +540,15 @@ fn a_ros2_recording_of_the_village_carries_raw_images_imu_gps_and_rendezvous() {
         }
     }
     assert_eq!(fixes, 4, "1 Hz on two robots over 2 s");
+    // The same fixes in the local frame, as the robots received them (replay reads these).
+    let local: usize = ["dala", "ressac"]
+        .iter()
+        .map(|robot| {
+            let topic = format!("/{robot}/gps/local");
+            of(&r, &topic, "hetsim_msgs/msg/GpsLocal").len()
+        })
+        .sum();
+    assert_eq!(local, fixes);
     // The rendezvous right at the start: Ressac sees Dala 40 m below.
     let mut seen = 0;
     for robot in ["dala", "ressac"] {

@@ -69,7 +69,7 @@ pub fn replay(args: &ReplayArgs) -> Result<hetsim_eval::RunFiles> {
         };
         let text =
             std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
-        let scenario = load(
+        let mut scenario = load(
             path,
             &text,
             &args.set,
@@ -98,6 +98,10 @@ pub fn replay(args: &ReplayArgs) -> Result<hetsim_eval::RunFiles> {
             dt_ns: scenario.clock.dt_ns(),
         };
         let euroc = EurocRecording::open(&args.source, spec)?;
+        // Until the robot has seen the last image.
+        let dt = scenario.clock.dt_secs();
+        let last = euroc.last_image_ns() as f64 * 1e-9 + dt;
+        scenario.duration_secs = scenario.duration_secs.min(last);
         (scenario, Box::new(euroc))
     } else {
         let mcap = McapRecording::open(&args.source)?;

@@ -293,6 +293,10 @@ fn lookup_mut<'a>(table: &'a mut toml::Table, dotted: &str) -> Option<&'a mut to
     if rest.is_empty() {
         return table.get_mut(*first);
     }
+    // `[slam]` is the one table a robot file may leave out whose fields may be overridden.
+    if *first == "slam" && !table.contains_key("slam") {
+        table.insert("slam".into(), toml::Value::Table(toml::Table::new()));
+    }
     let mut current = table.get_mut(*first)?;
     for (k, seg) in rest.iter().enumerate() {
         current = child(current, seg, k + 1 == rest.len())?;

@@ -5,7 +5,6 @@
 
 use super::{RecordError, Recorder};
 use hetsim_scene::Scenario;
-use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 
 /// Name of the metadata record describing the run.
@@ -14,7 +13,7 @@ pub const RUN_METADATA: &str = "hetsim.run";
 pub const OUTCOME_METADATA: &str = "hetsim.outcome";
 
 /// What the physics measured of one robot, kept in the recording (replay has no physics).
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct RecordedOutcome {
     /// The robot.
     pub name: String,
@@ -44,15 +43,39 @@ impl Recorder {
         self.metadata(RUN_METADATA, metadata)
     }
 
-    /// Writes what the physics measured of each robot, and the ticks run.
+    /// Writes what the physics measured of each robot, and the ticks run: keys
+    /// `<robot>/distance_m` (Rust's shortest round-trip decimal, so the bits come back) and
+    /// `<robot>/collisions`.
     pub fn outcome(&mut self, ticks: u64, robots: &[RecordedOutcome]) -> Result<(), RecordError> {
         let mut metadata = BTreeMap::new();
         metadata.insert("ticks".into(), ticks.to_string());
-        metadata.insert(
-            "robots".into(),
-            serde_json::to_string(robots).expect("outcomes serialize"),
-        );
+        for r in robots {
+            metadata.insert(
+                format!("{}/distance_m", r.name),
+                format!("{:?}", r.distance_m),
+            );
+            metadata.insert(format!("{}/collisions", r.name), r.collisions.to_string());
+        }
         self.metadata(OUTCOME_METADATA, metadata)
+    }
+
+    /// The outcomes written by [`Recorder::outcome`], if the metadata holds them.
+    pub fn read_outcome(
+        metadata: &BTreeMap<String, String>,
+    ) -> Option<(u64, Vec<RecordedOutcome>)> {
+        let ticks = metadata.get("ticks")?.parse().ok()?;
+        let mut robots = Vec::new();
+        for (key, value) in metadata {
+            let Some(name) = key.strip_suffix("/distance_m") else {
+                continue;
+            };
+            robots.push(RecordedOutcome {
+                name: name.to_string(),
+                distance_m: value.parse().ok()?,
+                collisions: metadata.get(&format!("{name}/collisions"))?.parse().ok()?,
+            });
+        }
+        Some((ticks, robots))
     }
 
     fn metadata(

@@ -6,8 +6,8 @@
 //! rectified images), or replay refuses the dataset naming the file and the field. Stamps are
 //! used as they are when they are sim times (hetsim's own dumps); a dataset stamped with wall
 //! time (the first stamp more than a day) is shifted to start at its first image. Each image
-//! reaches the robot at the tick nearest its stamp, and must be on the scenario's tick grid
-//! within half a tick.
+//! reaches the robot at the tick nearest its stamp; replay ends one tick after the last image
+//! (or earlier, at the scenario's duration or `--duration`).
 //!
 //! Every row of `data.csv` is checked and every image it lists must exist before replay
 //! starts; a bad row or a missing image is refused with the file and row.
@@ -264,6 +264,16 @@ impl EurocRecording {
                 .collect(),
             pending: VecDeque::new(),
         })
+    }
+
+    /// Delivery time of the last image, nanoseconds.
+    pub fn last_image_ns(&self) -> u64 {
+        self.items
+            .iter()
+            .filter(|(_, _, item)| matches!(item, Item::Pair(..)))
+            .map(|(log, ..)| *log)
+            .max()
+            .unwrap_or(0)
     }
 
     fn image(&self, path: &Path, stamp_ns: u64, eye: &str) -> Result<SensorMsg, ReplayError> {

@@ -167,11 +167,9 @@ impl McapRecording {
         };
         let run = RunDescription::from_metadata(metadata.get(RUN_METADATA))
             .map_err(|w| bad(0, format!("{w}: not a recording hetsim run --record wrote")))?;
-        let outcome = metadata.get(OUTCOME_METADATA).and_then(|m| {
-            let ticks = m.get("ticks")?.parse().ok()?;
-            let robots = serde_json::from_str(m.get("robots")?).ok()?;
-            Some((ticks, robots))
-        });
+        let outcome = metadata
+            .get(OUTCOME_METADATA)
+            .and_then(crate::record::Recorder::read_outcome);
         Ok(Self {
             file,
             len,
@@ -271,24 +269,25 @@ impl McapRecording {
                 ),
             ));
         }
-        let buf =
-            match header.compression.as_str() {
-                "" => data.to_vec(),
-                "zstd" => zstd::bulk::decompress(data, header.uncompressed_size as usize).map_err(
-                    |e| {
-                        self.corrupt(
-                            at,
-                            format!("the chunk's zstd data does not decompress: {e}"),
-                        )
-                    },
-                )?,
-                other => return Err(self.corrupt(
+        let buf = match header.compression.as_str() {
+            "" => data.to_vec(),
+            "zstd" => {
+                zstd::bulk::decompress(data, header.uncompressed_size as usize).map_err(|e| {
+                    self.corrupt(
+                        at,
+                        format!("the chunk's zstd data does not decompress: {e}"),
+                    )
+                })?
+            }
+            other => {
+                return Err(self.corrupt(
                     at,
                     format!(
                         "chunk compression \"{other}\": hetsim reads zstd or uncompressed chunks"
                     ),
-                )),
-            };
+                ))
+            }
+        };
         if buf.len() as u64 != header.uncompressed_size {
             return Err(self.corrupt(
                 at,

@@ -1,0 +1,331 @@
+//! `hetsim replay` end to end: a recorded run fed back to the robot software computes the
+//! live run's bytes; a closed-loop mission replays with every command matching and stops at
+//! the first divergence; a EuRoC dump feeds the VO; and each kind of damaged input is refused
+//! with its file and where in it.
+
+use hetsim_tests::{hetsim, printed_digest};
+use std::path::Path;
+
+/// Every file of a results folder by relative path, with its bytes.
+fn files(dir: &Path) -> Vec<(String, Vec<u8>)> {
+    hetsim_tests::sweep_folder_files(dir)
+}
+
+fn file(dir: &Path, name: &str) -> Vec<u8> {
+    std::fs::read(dir.join(name)).unwrap_or_else(|e| panic!("{}/{name}: {e}", dir.display()))
+}
+
+fn ok(args: &[&str]) -> String {
+    printed_digest(&hetsim(args, &[]))
+}
+
+/// The refusal's message, checking the exit status and that nothing was written.
+fn refused(args: &[&str], out: &Path) -> String {
+    let o = hetsim(args, &[]);
+    let stderr = String::from_utf8_lossy(&o.stderr).into_owned();
+    assert!(!o.status.success(), "{args:?} succeeded");
+    assert!(!out.exists(), "{args:?} left {}", out.display());
+    stderr
+}
+
+#[test]
+fn a_replayed_village_computes_the_live_runs_bytes_and_a_changed_parameter_changes_them() {
+    let tmp = tempfile::tempdir().unwrap();
+    let (rec, live, replay) = (
+        tmp.path().join("v.mcap"),
+        tmp.path().join("live"),
+        tmp.path().join("replay"),
+    );
+    let s = |p: &Path| p.to_str().unwrap().to_string();
+    let live_digest = ok(&[
+        "run",
+        "scenarios/village-short.toml",
+        "--duration",
+        "4",
+        "--record",
+        &s(&rec),
+        "--out",
+        &s(&live),
+    ]);
+    // Same messages, commands, radio traffic and outputs: the same run digest.
+    let replay_digest = ok(&["replay", &s(&rec), "--out", &s(&replay)]);
+    assert_eq!(replay_digest, live_digest);
+    let (a, b) = (files(&live), files(&replay));
+    assert_eq!(
+        a.iter().map(|f| &f.0).collect::<Vec<_>>(),
+        b.iter().map(|f| &f.0).collect::<Vec<_>>()
+    );
+    for ((name, x), (_, y)) in a.iter().zip(&b) {
+        // The manifest names the renderer, which replay does not use.
+        if name != "manifest.json" {
+            assert!(x == y, "{name} differs between the live run and its replay");
+        }
+    }
+    for robot in ["dala", "ressac"] {
+        for kind in ["slam", "vo"] {
+            let name = format!("{kind}/{robot}.tum");
+            assert!(file(&live, &name).len() > 1000, "{name} has poses");
+        }
+    }
+    // One robot alone: the other's recorded radio messages still reach it, so its SLAM
+    // computes the same bytes.
+    let alone = tmp.path().join("alone");
+    ok(&["replay", &s(&rec), "--robot", "dala", "--out", &s(&alone)]);
+    for name in ["slam/dala.tum", "vo/dala.tum"] {
+        assert!(file(&live, name) == file(&alone, name), "{name}");
+    }
+    // A SLAM parameter changed: the pilots' commands still match (they fly on the oracle),
+    // the SLAM's estimate changes.
+    let tuned = tmp.path().join("tuned");
+    ok(&[
+        "replay",
+        &s(&rec),
+        "--set",
+        "robots.dala.slam.sigma_px=4.0",
+        "--out",
+        &s(&tuned),
+    ]);
+    assert!(file(&live, "slam/dala.tum") != file(&tuned, "slam/dala.tum"));
+    assert!(
+        file(&live, "vo/dala.tum") == file(&tuned, "vo/dala.tum"),
+        "VO has no sigma_px"
+    );
+    // A setting that is not a field is refused by the robot file's loader.
+    let bad = tmp.path().join("bad");
+    let e = refused(
+        &[
+            "replay",
+            &s(&rec),
+            "--set",
+            "robots.dala.slam.sigma_pix=4",
+            "--out",
+            &s(&bad),
+        ],
+        &bad,
+    );
+    assert!(e.contains("sigma_pix"), "{e}");
+
+    // Damaged recordings, each refused with the file and the byte.
+    let bytes = std::fs::read(&rec).unwrap();
+    let cut = tmp.path().join("cut.mcap");
+    std::fs::write(&cut, &bytes[..bytes.len() / 2]).unwrap();
+    let e = refused(&["replay", &s(&cut), "--out", &s(&bad)], &bad);
+    assert!(
+        e.contains("cut.mcap: at byte") && e.contains("truncated"),
+        "{e}"
+    );
+    let mut flipped = bytes.clone();
+    let middle = bytes.len() / 2;
+    for b in &mut flipped[middle..middle + 8] {
+        *b ^= 0x5a;
+    }
+    let flip = tmp.path().join("flip.mcap");
+    std::fs::write(&flip, &flipped).unwrap();
+    let e = refused(&["replay", &s(&flip), "--out", &s(&bad)], &bad);
+    assert!(e.contains("flip.mcap: at byte"), "{e}");
+    let not_mcap = tmp.path().join("notes.mcap");
+    std::fs::write(&not_mcap, b"hello").unwrap();
+    let e = refused(&["replay", &s(&not_mcap), "--out", &s(&bad)], &bad);
+    assert!(e.contains("notes.mcap: at byte 0: not an MCAP file"), "{e}");
+    // A channel of a schema hetsim does not know, in an otherwise valid recording.
+    let odd = tmp.path().join("odd.mcap");
+    with_unknown_schema(&bytes, &odd);
+    let e = refused(&["replay", &s(&odd), "--out", &s(&bad)], &bad);
+    assert!(
+        e.contains("odd.mcap: at byte")
+            && e.contains("\"foo_msgs/msg/Bar\" is not one hetsim replays"),
+        "{e}"
+    );
+}
+
+/// A copy of a recording with one more channel, `/dala/thing` of schema `foo_msgs/msg/Bar`,
+/// and a message on it.
+fn with_unknown_schema(recording: &[u8], to: &Path) {
+    let summary = mcap::read::Summary::read(recording).unwrap().unwrap();
+    let mut w = mcap::WriteOptions::new()
+        .profile("ros2")
+        .create(std::io::BufWriter::new(std::fs::File::create(to).unwrap()))
+        .unwrap();
+    for index in &summary.metadata_indexes {
+        w.write_metadata(&mcap::read::metadata(recording, index).unwrap())
+            .unwrap();
+    }
+    let channel = mcap::Channel {
+        id: 999,
+        topic: "/dala/thing".into(),
+        schema: Some(std::sync::Arc::new(mcap::Schema {
+            id: 999,
+            name: "foo_msgs/msg/Bar".into(),
+            encoding: "ros2msg".into(),
+            data: std::borrow::Cow::Borrowed(b"int32 x\n"),
+        })),
+        message_encoding: "cdr".into(),
+        metadata: Default::default(),
+    };
+    w.write(&mcap::Message {
+        channel: std::sync::Arc::new(channel),
+        sequence: 1,
+        log_time: 0,
+        publish_time: 0,
+        data: std::borrow::Cow::Borrowed(&[0, 1, 0, 0, 7, 0, 0, 0]),
+    })
+    .unwrap();
+    for m in mcap::MessageStream::new(recording).unwrap() {
+        w.write(&m.unwrap()).unwrap();
+    }
+    w.finish().unwrap();
+}
+
+#[test]
+fn a_replayed_coverage_mission_sends_every_recorded_command_or_stops_at_the_first_other() {
+    let tmp = tempfile::tempdir().unwrap();
+    let s = |p: &Path| p.to_str().unwrap().to_string();
+    let (rec, live) = (tmp.path().join("lab.mcap"), tmp.path().join("live"));
+    let live_digest = ok(&[
+        "run",
+        "scenarios/lab.toml",
+        "--duration",
+        "30",
+        "--no-render",
+        "--record",
+        &s(&rec),
+        "--out",
+        &s(&live),
+    ]);
+    // The parent's plan, its orders over the radio and the children's driving: every command
+    // the replayed stacks send is the recorded one (replay checks each), and so is the digest.
+    let replay = tmp.path().join("replay");
+    assert_eq!(ok(&["replay", &s(&rec), "--out", &s(&replay)]), live_digest);
+    // A child that drives faster sends other wheel speeds: the replay stops there.
+    let bad = tmp.path().join("bad");
+    let e = refused(
+        &[
+            "replay",
+            &s(&rec),
+            "--set",
+            "robots.child1.pilot.cruise_mps=0.12",
+            "--out",
+            &s(&bad),
+        ],
+        &bad,
+    );
+    assert!(
+        e.contains("replay diverged at t = ")
+            && e.contains("robot child1 sent")
+            && e.contains("on /child1/cmd"),
+        "{e}"
+    );
+    // A JSON recording is not one replay reads, and says which one is.
+    let json = tmp.path().join("lab.json.mcap");
+    ok(&[
+        "run",
+        "scenarios/lab.toml",
+        "--duration",
+        "1",
+        "--no-render",
+        "--record",
+        &s(&json),
+        "--record-encoding",
+        "json",
+        "--out",
+        &s(&tmp.path().join("json")),
+    ]);
+    let e = refused(&["replay", &s(&json), "--out", &s(&bad)], &bad);
+    assert!(e.contains("hetsim replays ROS 2 recordings"), "{e}");
+}
+
+#[test]
+fn a_euroc_dump_replays_into_the_vo_and_a_missing_image_is_refused_with_its_row() {
+    let tmp = tempfile::tempdir().unwrap();
+    let s = |p: &Path| p.to_str().unwrap().to_string();
+    let live = tmp.path().join("live");
+    ok(&[
+        "run",
+        "scenarios/village-short.toml",
+        "--duration",
+        "3",
+        "--dump-frames",
+        "--out",
+        &s(&live),
+    ]);
+    let mav0 = live.join("frames/dala/mav0");
+    let replay = tmp.path().join("replay");
+    ok(&[
+        "replay",
+        &s(&mav0),
+        "--scenario",
+        "scenarios/village-short.toml",
+        "--robot",
+        "dala",
+        "--out",
+        &s(&replay),
+    ]);
+    // The VO sees the same images at the same ticks: the same estimate, byte for byte. The
+    // live run ended before its robots read the frames of its last tick; the replay reads
+    // them, one pose more.
+    let (a, b) = (file(&live, "vo/dala.tum"), file(&replay, "vo/dala.tum"));
+    assert!(
+        a.len() > 1000 && b.starts_with(&a),
+        "the live estimate is the replay's start"
+    );
+    let more = String::from_utf8_lossy(&b[a.len()..]).into_owned();
+    assert!(
+        more.lines().count() == 1 && more.starts_with("3.000000000 "),
+        "{more}"
+    );
+    // Without --scenario, or into the wrong bench, the dataset is refused.
+    let bad = tmp.path().join("bad");
+    let e = refused(
+        &["replay", &s(&mav0), "--robot", "dala", "--out", &s(&bad)],
+        &bad,
+    );
+    assert!(e.contains("--scenario"), "{e}");
+    let e = refused(
+        &[
+            "replay",
+            &s(&mav0),
+            "--scenario",
+            "scenarios/village.toml",
+            "--robot",
+            "dala",
+            "--out",
+            &s(&bad),
+        ],
+        &bad,
+    );
+    assert!(
+        e.contains("cam0/sensor.yaml: resolution [512.0, 384.0]"),
+        "{e}"
+    );
+    // A damaged row, then a missing image: each named with its file and row.
+    let csv = mav0.join("cam0/data.csv");
+    let text = std::fs::read_to_string(&csv).unwrap();
+    let mut rows: Vec<String> = text.lines().map(str::to_string).collect();
+    let name = rows[3].split(',').nth(1).unwrap().to_string();
+    let good = rows[3].clone();
+    rows[3] = format!("12x4,{name}");
+    std::fs::write(&csv, rows.join("\n")).unwrap();
+    let args = [
+        "replay",
+        &s(&mav0),
+        "--scenario",
+        "scenarios/village-short.toml",
+        "--robot",
+        "dala",
+        "--out",
+        &s(&bad),
+    ];
+    let e = refused(&args, &bad);
+    assert!(
+        e.contains("cam0/data.csv: row 4: timestamp \"12x4\""),
+        "{e}"
+    );
+    rows[3] = good;
+    std::fs::write(&csv, rows.join("\n")).unwrap();
+    std::fs::remove_file(mav0.join("cam0/data").join(&name)).unwrap();
+    let e = refused(&args, &bad);
+    assert!(
+        e.contains(&format!("cam0/data.csv: row 4: image {name} is missing")),
+        "{e}"
+    );
+}
