@@ -111,7 +111,9 @@ enum Task {
     Grab {
         vertex: (usize, usize),
         sent_ns: u64,
-        fixes: Vec<[f64; 2]>,
+        /// The tracker's fixes while the child grabs: their sum and count (a child that
+        /// waits long for its image must not grow the parent's memory).
+        fixes: ([f64; 2], u32),
     },
 }
 
@@ -308,7 +310,7 @@ impl ParentStack {
                     self.children[child].task = Task::Grab {
                         vertex: cell,
                         sent_ns: self.now_ns,
-                        fixes: Vec::new(),
+                        fixes: ([0.0; 2], 0),
                     };
                 }
             } else {
@@ -425,7 +427,9 @@ impl ParentStack {
                             c.path.push((t.stamp_ns, track.position_m));
                         }
                         if let Task::Grab { fixes, .. } = &mut c.task {
-                            fixes.push(track.position_m);
+                            fixes.0[0] += track.position_m[0];
+                            fixes.0[1] += track.position_m[1];
+                            fixes.1 += 1;
                         }
                     }
                 }

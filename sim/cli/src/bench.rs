@@ -9,6 +9,9 @@ use serde_json::{json, Map, Value};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
+mod replay;
+pub use replay::replay;
+
 /// One bench's figures: named columns, one row per measured case.
 pub struct Figures {
     /// Which bench.

@@ -26,6 +26,32 @@ pub struct Job<'a> {
     pub open_loop: bool,
     /// No progress bar (runs of a sweep, which shows its own).
     pub quiet: bool,
+    /// Where to append (sim seconds, resident memory in MiB) at each progress report.
+    pub memory: Option<&'a MemoryTrace>,
+}
+
+/// A run's resident memory against sim time, sampled at each progress report.
+pub type MemoryTrace = std::sync::Mutex<Vec<(f64, f64)>>;
+
+/// Appends (sim seconds, this process's resident memory in MiB) to a trace, if given.
+pub fn sample_memory(trace: Option<&MemoryTrace>, sim_secs: f64) {
+    if let (Some(t), Some(rss)) = (trace, resident_mib()) {
+        t.lock().expect("memory trace lock").push((sim_secs, rss));
+    }
+}
+
+/// This process's resident set (`VmRSS` of /proc/self/status), MiB; `None` off Linux.
+pub fn resident_mib() -> Option<f64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let kb: f64 = status
+        .lines()
+        .find_map(|l| l.strip_prefix("VmRSS:"))?
+        .trim()
+        .trim_end_matches("kB")
+        .trim()
+        .parse()
+        .ok()?;
+    Some(kb / 1024.0)
 }
 
 /// `hetsim frames`: renders and writes the frames of a time window.
@@ -73,6 +99,7 @@ pub fn frames(
             dump: Some((Some((from, to)), list)),
             open_loop: false,
             quiet: false,
+            memory: None,
         },
     )
 }
@@ -132,6 +159,7 @@ pub fn run_scenario(loaded: &Scenario, job: &Job<'_>) -> Result<hetsim_eval::Run
             bar.set_length(total);
             bar.set_position(tick);
             let sim = clock.time_secs(tick);
+            sample_memory(job.memory, sim);
             let wall = start.elapsed().as_secs_f64().max(1e-9);
             bar.set_message(format!(
                 "{sim:.1} / {:.1} s sim, {:.2}x real time",
@@ -182,7 +210,7 @@ pub fn run_scenario(loaded: &Scenario, job: &Job<'_>) -> Result<hetsim_eval::Run
     Ok(files)
 }
 
-fn rayon_threads() -> usize {
+pub fn rayon_threads() -> usize {
     std::env::var("RAYON_NUM_THREADS")
         .ok()
         .and_then(|v| v.parse().ok())

@@ -235,6 +235,16 @@ enum Cmd {
         /// observed once per frame).
         #[arg(long, group = "mode")]
         slam: bool,
+        /// Instead: the first scenario run for --sim-secs rendered and recorded, then its
+        /// recording replayed (`hetsim replay`), back to back: both speeds, their ratio, the
+        /// recording's size per sim minute, peak resident memory, and whether the replay has
+        /// the live run's digest. With --out DIR, memory.csv and memory.png (resident memory
+        /// against sim time).
+        #[arg(long, group = "mode")]
+        replay: bool,
+        /// With --replay: where to write memory.csv and memory.png.
+        #[arg(long)]
+        out: Option<PathBuf>,
         /// Print the figures as one JSON object instead of a Markdown table.
         #[arg(long)]
         json: bool,
@@ -295,6 +305,7 @@ fn real_main() -> Result<()> {
                     dump: dump_frames.then_some((None, None)),
                     open_loop,
                     quiet: false,
+                    memory: None,
                 },
             )?;
         }
@@ -355,6 +366,7 @@ fn real_main() -> Result<()> {
                 scenario,
                 duration,
                 quiet: false,
+                memory: None,
             })?;
             println!("results: {}", files.dir.display());
             println!("digest: {}", files.digest);
@@ -409,9 +421,13 @@ fn real_main() -> Result<()> {
             render,
             vision,
             slam,
+            replay,
+            out,
             json,
         } => {
-            let figures = if slam {
+            let figures = if replay {
+                bench::replay(&scenarios[0], sim_secs, out.as_deref())?
+            } else if slam {
                 bench::slam()
             } else if vision {
                 bench::vision(&scenarios[0])?

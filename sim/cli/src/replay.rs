@@ -8,7 +8,7 @@ use hetsim_scene::{load_scenario_text, LoadOptions, Scenario};
 use std::path::{Path, PathBuf};
 
 /// What to replay, and how.
-pub struct ReplayArgs {
+pub struct ReplayArgs<'a> {
     /// An MCAP recording, or a EuRoC dataset's `mav0` folder.
     pub source: PathBuf,
     /// Replay only these robots (default: all; a EuRoC dataset needs exactly one).
@@ -25,6 +25,8 @@ pub struct ReplayArgs {
     pub duration: Option<f64>,
     /// No progress bar.
     pub quiet: bool,
+    /// Where to append (sim seconds, resident MiB) at each progress report.
+    pub memory: Option<&'a crate::exec::MemoryTrace>,
 }
 
 /// `key=value` settings parsed (values as TOML, bare words as strings).
@@ -58,7 +60,7 @@ fn load(path: &Path, text: &str, set: &[String], options: LoadOptions) -> Result
 }
 
 /// Replays and writes the results folder; prints `results:` and `digest:`.
-pub fn replay(args: &ReplayArgs) -> Result<hetsim_eval::RunFiles> {
+pub fn replay(args: &ReplayArgs<'_>) -> Result<hetsim_eval::RunFiles> {
     let start = crate::bench::wall_clock();
     let (scenario, mut recording): (Scenario, Box<dyn Recording>) = if args.source.is_dir() {
         let Some(path) = &args.scenario else {
@@ -163,9 +165,11 @@ pub fn replay(args: &ReplayArgs) -> Result<hetsim_eval::RunFiles> {
     } else {
         crate::exec::progress_bar(&format!("replay {}", scenario.file.name))
     };
+    let clock = scenario.clock;
     let output = hetsim_engine::replay(&scenario, stacks, recording.as_mut(), |tick, total| {
         bar.set_length(total);
         bar.set_position(tick);
+        crate::exec::sample_memory(args.memory, clock.time_secs(tick));
     });
     bar.finish_and_clear();
     let output = output?;

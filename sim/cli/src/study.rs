@@ -218,6 +218,7 @@ fn whole_run(
                 dump: None,
                 open_loop: false,
                 quiet: true,
+                memory: None,
             },
         )
         .map_err(|e| sweep.run_error(run, format!("{e:#}")))?;
@@ -275,6 +276,7 @@ pub fn localize(
                     dump: None,
                     open_loop: false,
                     quiet: false,
+                    memory: None,
                 },
             )?;
         }

@@ -19,7 +19,7 @@
 use crate::comms::Comms;
 use crate::output::{RobotOutcome, RunOutput};
 use crate::record::RecordedOutcome;
-use crate::run::{encode, hash_encoded, oracles};
+use crate::run::{encode, hash_encoded, oracles, truth_buffers};
 use hetsim_core::{RunDigest, Streams};
 use hetsim_msgs::{Command, InputError, Pose, PoseStamped, RobotStack, SensorMsg};
 use hetsim_scene::{Scenario, Sensor};
@@ -219,7 +219,14 @@ pub fn replay(
         active: active.clone(),
         digest: RunDigest::new(),
         counts: BTreeMap::new(),
-        truth: vec![Vec::new(); n],
+        truth: truth_buffers(
+            n,
+            clock.ticks_in(scenario.duration_secs)
+                / clock
+                    .period_ticks(scenario.file.truth_rate_hz)
+                    .expect("validated truth rate")
+                + 2,
+        ),
         position: vec![[0.0; 3]; n],
         last_pose: vec![None; n],
         inboxes: vec![Vec::new(); n],

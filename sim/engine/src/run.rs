@@ -236,7 +236,7 @@ fn run_on_worker(
     }
     // What each stack computed (its commands and radio messages), digested per robot.
     let mut stack_digests: Vec<RunDigest> = (0..n).map(|_| RunDigest::new()).collect();
-    let mut truth: Vec<Vec<(u64, Pose)>> = vec![Vec::new(); n];
+    let mut truth = truth_buffers(n, total / truth_period + 2);
     let mut keyframes_seen = vec![0usize; n];
     let topics = Topics::of(scenario, &names);
     let oracles = oracles(scenario);
@@ -449,6 +449,13 @@ fn run_on_worker(
         digest: post.digest,
         adapter: cameras.as_ref().map(|c| c.adapter().clone()),
     })
+}
+
+/// One ground-truth buffer per robot, reserved for the whole run (at most a million samples
+/// each up front), so that the run's heap grows only by what the robots keep.
+pub(crate) fn truth_buffers(robots: usize, samples: u64) -> Vec<Vec<(u64, Pose)>> {
+    let reserve = samples.min(1 << 20) as usize;
+    (0..robots).map(|_| Vec::with_capacity(reserve)).collect()
 }
 
 /// The postcard encoding's length and SHA-256, written straight into the hasher.

@@ -14,9 +14,11 @@ use std::sync::Once;
 
 mod boxes;
 mod coverage;
+mod lines;
 mod localization;
 pub use boxes::{boxes_png, BoxPanel};
 pub use coverage::{coverage_map_png, stacked_boxes_png, CoverageMap, StackedBox};
+pub use lines::lines_png;
 pub use localization::localization_png;
 
 /// A figure's font family, registered once from the embedded DejaVu Sans.

@@ -127,14 +127,9 @@ impl ParentStack {
                 let Task::Grab { fixes, .. } = &self.children[i].task else {
                     return;
                 };
-                let estimated_xy = if fixes.is_empty() {
-                    self.children[i].estimate
-                } else {
-                    let n = fixes.len() as f64;
-                    [
-                        fixes.iter().map(|f| f[0]).sum::<f64>() / n,
-                        fixes.iter().map(|f| f[1]).sum::<f64>() / n,
-                    ]
+                let estimated_xy = match *fixes {
+                    (_, 0) => self.children[i].estimate,
+                    (sum, n) => [sum[0] / n as f64, sum[1] / n as f64],
                 };
                 self.report.database.push(DatabaseImage {
                     vertex,
