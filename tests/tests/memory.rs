@@ -108,3 +108,57 @@ fn a_long_coverage_mission_keeps_no_per_tick_state() {
         samples.iter().step_by(10).collect::<Vec<_>>()
     );
 }
+
+/// On demand (`HETSIM_RECORDING=village.mcap cargo test --release -p hetsim-tests --test
+/// memory -- --ignored --nocapture`): the robot software's heap, replaying a recording, at
+/// every 10 sim seconds, and what its artifacts hold at the end. How `results/replay/README.md`
+/// attributes the full village's memory growth.
+#[test]
+#[ignore = "needs a recording; a measurement, not a check"]
+fn robot_software_heap_over_a_recording() {
+    let path = std::path::PathBuf::from(
+        std::env::var("HETSIM_RECORDING").expect("HETSIM_RECORDING=<a recording>"),
+    );
+    static ONE: Mutex<()> = Mutex::new(());
+    let _one = ONE.lock().unwrap();
+    let mut rec = hetsim_engine::replay::McapRecording::open(&path).unwrap();
+    let run = rec.run.clone();
+    let s = hetsim_scene::load_scenario_text(
+        &run.scenario_path,
+        run.scenario_text.clone(),
+        &LoadOptions {
+            seed: Some(run.seed),
+            duration_secs: Some(run.duration_secs),
+            robot_files: Some(run.robot_files.clone()),
+        },
+    )
+    .unwrap();
+    let stacks = hetsim_stacks::build_stacks(&s, false).into_iter().map(Some).collect();
+    let clock = s.clock;
+    let samples = Mutex::new(Vec::with_capacity(10_000));
+    let output = hetsim_engine::replay(&s, stacks, &mut rec, |tick, _| {
+        let h = heap();
+        samples.lock().unwrap().push((clock.time_secs(tick), h));
+    })
+    .unwrap();
+    for (t, h) in samples.lock().unwrap().iter().filter(|(t, _)| (t % 10.0).abs() < 1e-9) {
+        println!("{t:6.0} s: heap {:8.2} MiB", *h as f64 / 1048576.0);
+    }
+    // Least-squares slope of the heap from 20 s on, every sim second.
+    let pts: Vec<(f64, f64)> = samples
+        .lock()
+        .unwrap()
+        .iter()
+        .filter(|(t, _)| *t >= 20.0)
+        .map(|(t, h)| (*t, *h as f64))
+        .collect();
+    let n = pts.len() as f64;
+    let (mt, mh) = (
+        pts.iter().map(|p| p.0).sum::<f64>() / n,
+        pts.iter().map(|p| p.1).sum::<f64>() / n,
+    );
+    let slope = pts.iter().map(|p| (p.0 - mt) * (p.1 - mh)).sum::<f64>()
+        / pts.iter().map(|p| (p.0 - mt).powi(2)).sum::<f64>();
+    println!("heap slope from 20 s: {:.1} KiB per sim second", slope / 1024.0);
+    println!("artifacts: {:.2} MiB", kept_bytes(&output) as f64 / 1048576.0);
+}

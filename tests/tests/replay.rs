@@ -329,3 +329,65 @@ fn a_euroc_dump_replays_into_the_vo_and_a_missing_image_is_refused_with_its_row(
         "{e}"
     );
 }
+
+#[test]
+fn a_sweep_over_a_recording_replays_each_setting() {
+    let tmp = tempfile::tempdir().unwrap();
+    let s = |p: &Path| p.to_str().unwrap().to_string();
+    let (rec, live) = (tmp.path().join("rec.mcap"), tmp.path().join("live"));
+    ok(&[
+        "run",
+        "scenarios/village-short.toml",
+        "--duration",
+        "3",
+        "--record",
+        &s(&rec),
+        "--out",
+        &s(&live),
+    ]);
+    let sweep = tmp.path().join("sweep.toml");
+    let text = r#"schema_version = 1
+name = "replayed"
+kind = "run"
+recording = "rec.mcap"
+seeds = 1
+metrics = ["estimates.slam/dala.ate_m", "estimates.vo/dala.ate_m"]
+[axes]
+"models.dala.slam.sigma_px" = [1.0, 4.0]
+"#;
+    std::fs::write(&sweep, text).unwrap();
+    let out = tmp.path().join("out");
+    let o = hetsim(
+        &["sweep", &s(&sweep), "--out", &s(&out), "--jobs", "2"],
+        &[],
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let csv = std::fs::read_to_string(out.join("runs.csv")).unwrap();
+    let rows: Vec<Vec<&str>> = csv
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').collect())
+        .collect();
+    assert_eq!(rows.len(), 2, "{csv}");
+    // Columns: run, the axis, seed, digest, then the metrics.
+    let (slam, vo) = ((rows[0][4], rows[1][4]), (rows[0][5], rows[1][5]));
+    assert_eq!(vo.0, vo.1, "the VO does not use sigma_px: {csv}");
+    assert_ne!(slam.0, slam.1, "the SLAM does: {csv}");
+    // sigma_px 1.0 is the robot file's: that replay is the live run.
+    assert!(file(&live, "slam/dala.tum") == file(&out.join("runs/000000"), "slam/dala.tum"));
+    // A recording carries its scenario: a base beside it is refused, by name.
+    std::fs::write(
+        &sweep,
+        text.replace("seeds = 1", "seeds = 1\nbase = \"x.toml\""),
+    )
+    .unwrap();
+    let o = hetsim(
+        &["sweep", &s(&sweep), "--out", &s(&tmp.path().join("no"))],
+        &[],
+    );
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !o.status.success() && e.contains("field `base`") && e.contains("carries its scenario"),
+        "{e}"
+    );
+}

@@ -202,7 +202,26 @@ fn whole_run(
     run: &sweep::SweepRun,
     dir: &Path,
 ) -> Result<sweep::RunResult, sweep::SweepError> {
-    if !dir.join("manifest.json").is_file() {
+    if let (Some((recording, _)), false) = (&sweep.recording, dir.join("manifest.json").is_file()) {
+        // A replay of the recording with the run's axis values set.
+        let set = sweep
+            .axes()
+            .iter()
+            .zip(&run.values)
+            .map(|(k, v)| format!("{k}={v}"))
+            .collect();
+        crate::replay::replay(&crate::replay::ReplayArgs {
+            source: recording.clone(),
+            robots: Vec::new(),
+            out: Some(dir.to_path_buf()),
+            set,
+            scenario: None,
+            duration: sweep.file.duration_secs,
+            quiet: true,
+            memory: None,
+        })
+        .map_err(|e| sweep.run_error(run, format!("{e:#}")))?;
+    } else if !dir.join("manifest.json").is_file() {
         let loaded = sweep.scenario(run)?;
         let render = sweep
             .file

@@ -144,8 +144,16 @@ pub struct SweepFile {
     pub schema_version: i64,
     /// Name of the sweep.
     pub name: String,
-    /// Base scenario, relative to the sweep file's folder.
+    /// Base scenario, relative to the sweep file's folder (not with `recording`, which
+    /// carries its scenario).
+    #[serde(default)]
     pub base: String,
+    /// `run` only: replay this recording (`hetsim run --record`, relative to the sweep
+    /// file's folder) for each run instead of running live: the axes change the robot
+    /// software's settings, the sensor data stay the recorded ones. One seed, the
+    /// recording's.
+    #[serde(default)]
+    pub recording: Option<String>,
     /// `plan` (default) or `run`.
     #[serde(default)]
     pub kind: SweepKind,
@@ -190,6 +198,8 @@ pub struct Sweep {
     pub base: PathBuf,
     /// Base scenario text.
     pub base_text: String,
+    /// With `recording`: the recording (absolute) and the robot files it carries, by model.
+    pub recording: Option<(PathBuf, BTreeMap<String, String>)>,
     /// All runs in index order.
     pub runs: Vec<SweepRun>,
 }
@@ -291,14 +301,37 @@ pub fn load_sweep(path: &Path) -> Result<Sweep, SweepError> {
             "at most 1000000 runs in one sweep",
         ));
     }
-    let base = path.parent().unwrap_or(Path::new(".")).join(&file.base);
-    let base_text = std::fs::read_to_string(&base).map_err(|e| {
-        field(
-            "base",
-            format!("\"{}\"", file.base),
-            &format!("a readable scenario file ({}: {e})", base.display()),
-        )
-    })?;
+    let mut file = file;
+    let (base, base_text, recording) = match &file.recording {
+        Some(rec) => {
+            let at = path.parent().unwrap_or(Path::new(".")).join(rec);
+            let opened = hetsim_engine::replay::McapRecording::open(&at)
+                .map_err(|e| field("recording", format!("\"{rec}\""), &e.to_string()))?;
+            let run = opened.run;
+            // The recording's seed; its duration unless the sweep asks for less.
+            file.first_seed = run.seed;
+            file.duration_secs = Some(
+                file.duration_secs
+                    .map_or(run.duration_secs, |d| d.min(run.duration_secs)),
+            );
+            (
+                run.scenario_path,
+                run.scenario_text,
+                Some((at, run.robot_files)),
+            )
+        }
+        None => {
+            let base = path.parent().unwrap_or(Path::new(".")).join(&file.base);
+            let base_text = std::fs::read_to_string(&base).map_err(|e| {
+                field(
+                    "base",
+                    format!("\"{}\"", file.base),
+                    &format!("a readable scenario file ({}: {e})", base.display()),
+                )
+            })?;
+            (base, base_text, None)
+        }
+    };
     let mut combos: Vec<Vec<toml::Value>> = vec![Vec::new()];
     for values in file.axes.values() {
         combos = combos
@@ -325,6 +358,7 @@ pub fn load_sweep(path: &Path) -> Result<Sweep, SweepError> {
         file,
         base,
         base_text,
+        recording,
         runs,
     };
     // Every combination must make a valid scenario: check the first seed of each now.
@@ -343,6 +377,44 @@ fn check_kind_fields(
     file: &SweepFile,
     field: &dyn Fn(&str, String, &str) -> SweepError,
 ) -> Result<(), SweepError> {
+    if file.recording.is_some() {
+        let refused = [
+            (
+                "kind",
+                file.kind != SweepKind::Run,
+                "kind = \"run\" with a recording",
+            ),
+            (
+                "base",
+                !file.base.is_empty(),
+                "no base with a recording (it carries its scenario)",
+            ),
+            (
+                "seeds",
+                file.seeds != 1,
+                "seeds = 1 with a recording (its seed)",
+            ),
+            (
+                "first_seed",
+                file.first_seed != 0,
+                "no first_seed with a recording (its seed)",
+            ),
+            (
+                "render",
+                file.render.is_some(),
+                "no render with a recording (replay renders nothing)",
+            ),
+        ];
+        if let Some((name, _, allowed)) = refused.iter().find(|(_, bad, _)| *bad) {
+            return Err(field(name, "(set)".into(), allowed));
+        }
+    } else if file.base.is_empty() {
+        return Err(field(
+            "base",
+            "(missing)".into(),
+            "a scenario file, relative to the sweep file",
+        ));
+    }
     match file.kind {
         SweepKind::Plan => {
             let only_run = [
@@ -439,7 +511,7 @@ impl Sweep {
             &self.base,
             text,
             &LoadOptions {
-                robot_files: None,
+                robot_files: self.recording.as_ref().map(|(_, files)| files.clone()),
                 seed: Some(run.seed),
                 duration_secs: self.file.duration_secs,
             },

@@ -226,6 +226,7 @@ impl Sweep {
             );
         }
         let render = match self.file.kind {
+            SweepKind::Run if self.recording.is_some() => Some(false),
             SweepKind::Run => Some(self.file.render.unwrap_or(true)),
             SweepKind::Plan => None,
         };
@@ -240,6 +241,10 @@ impl Sweep {
             "metrics": self.metrics(),
             "duration_secs": durations,
             "render": render,
+            "recording_bytes": self
+                .recording
+                .as_ref()
+                .map(|(path, _)| std::fs::metadata(path).map(|m| m.len()).unwrap_or(0)),
         });
         Ok(serde_json::to_vec_pretty(&identity).expect("JSON values serialize"))
     }

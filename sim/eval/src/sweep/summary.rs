@@ -150,10 +150,16 @@ pub fn summarize(sweep: &Sweep, out: &Path) -> Result<SweepSummary, SweepError> 
 }
 
 fn intro(sweep: &Sweep, finished: usize) -> String {
+    let base = match &sweep.file.recording {
+        Some(rec) => format!(
+            "replays of the recording `{rec}` (scenario `{}`)",
+            sweep.base.display()
+        ),
+        None => format!("base scenario `{}`", sweep.file.base),
+    };
     format!(
-        "# Sweep `{}`\n\nBase scenario `{}`, {} seeds per cell from seed {}, {} of {} runs finished. Mean ± sample standard deviation.\n\n",
+        "# Sweep `{}`\n\nRuns: {base}, {} seeds per cell from seed {}, {} of {} runs finished. Mean ± sample standard deviation.\n\n",
         sweep.file.name,
-        sweep.file.base,
         sweep.file.seeds,
         sweep.file.first_seed,
         finished,
