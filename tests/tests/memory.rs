@@ -133,7 +133,10 @@ fn robot_software_heap_over_a_recording() {
         },
     )
     .unwrap();
-    let stacks = hetsim_stacks::build_stacks(&s, false).into_iter().map(Some).collect();
+    let stacks = hetsim_stacks::build_stacks(&s, false)
+        .into_iter()
+        .map(Some)
+        .collect();
     let clock = s.clock;
     let samples = Mutex::new(Vec::with_capacity(10_000));
     let output = hetsim_engine::replay(&s, stacks, &mut rec, |tick, _| {
@@ -141,7 +144,12 @@ fn robot_software_heap_over_a_recording() {
         samples.lock().unwrap().push((clock.time_secs(tick), h));
     })
     .unwrap();
-    for (t, h) in samples.lock().unwrap().iter().filter(|(t, _)| (t % 10.0).abs() < 1e-9) {
+    for (t, h) in samples
+        .lock()
+        .unwrap()
+        .iter()
+        .filter(|(t, _)| (t % 10.0).abs() < 1e-9)
+    {
         println!("{t:6.0} s: heap {:8.2} MiB", *h as f64 / 1048576.0);
     }
     // Least-squares slope of the heap from 20 s on, every sim second.
@@ -159,6 +167,12 @@ fn robot_software_heap_over_a_recording() {
     );
     let slope = pts.iter().map(|p| (p.0 - mt) * (p.1 - mh)).sum::<f64>()
         / pts.iter().map(|p| (p.0 - mt).powi(2)).sum::<f64>();
-    println!("heap slope from 20 s: {:.1} KiB per sim second", slope / 1024.0);
-    println!("artifacts: {:.2} MiB", kept_bytes(&output) as f64 / 1048576.0);
+    println!(
+        "heap slope from 20 s: {:.1} KiB per sim second",
+        slope / 1024.0
+    );
+    println!(
+        "artifacts: {:.2} MiB",
+        kept_bytes(&output) as f64 / 1048576.0
+    );
 }
