@@ -277,6 +277,8 @@ pub fn replay(
                 }
             }
             let stack = stacks[i].as_mut().expect("an active robot has a stack");
+            // The status right after the step, before the outbox is read, as the live run.
+            statuses.push(Some(stack.status()));
             let topic = format!("{}/cmd", names[i]);
             let bytes = encode(&cmd);
             feed.digest.record(&topic, &bytes);
@@ -288,7 +290,6 @@ pub fn replay(
                 stack_digests[i].record(&radio_topic, &bytes);
                 comms.send(tick, i, msg, &feed.position);
             }
-            statuses.push(Some(stack.status()));
         }
         // 3. Radio deliveries at the end of this tick, fed at the next.
         for (to, delivered) in comms.deliver(tick + 1) {
