@@ -152,12 +152,10 @@ fn cdr<'de, T: Deserialize<'de>>(data: &'de [u8]) -> Result<T, String> {
     let decoded = match data {
         [0, 1, _, _, rest @ ..] => cdr_encoding::from_bytes::<T, byteorder::LittleEndian>(rest),
         [0, 0, _, _, rest @ ..] => cdr_encoding::from_bytes::<T, byteorder::BigEndian>(rest),
-        _ => {
-            return Err(format!(
-                "not CDR: its encapsulation header is {:02x?}, expected 00 01 (little-endian) or 00 00",
-                &data[..data.len().min(4)]
-            ))
-        }
+        _ => return Err(format!(
+            "not CDR: its encapsulation header is {:02x?}, expected 00 01 (little-endian) or 00 00",
+            &data[..data.len().min(4)]
+        )),
     };
     decoded
         .map(|(value, _)| value)
