@@ -90,6 +90,25 @@ fn a_replayed_village_computes_the_live_runs_bytes_and_a_changed_parameter_chang
         file(&live, "vo/dala.tum") == file(&tuned, "vo/dala.tum"),
         "VO has no sigma_px"
     );
+    // The radio is modelled again, not replayed: with every message lost, Ressac never
+    // receives Dala's graph, so its SLAM estimate changes and its VO does not.
+    let lossy = tmp.path().join("lossy");
+    ok(&[
+        "replay",
+        &s(&rec),
+        "--set",
+        "comms.loss=1.0",
+        "--out",
+        &s(&lossy),
+    ]);
+    assert!(file(&live, "slam/ressac.tum") != file(&lossy, "slam/ressac.tum"));
+    assert!(file(&live, "vo/ressac.tum") == file(&lossy, "vo/ressac.tum"));
+    let comms: serde_json::Value = serde_json::from_slice(&file(&lossy, "metrics.json")).unwrap();
+    assert!(
+        comms["comms"]["dropped_loss"].as_u64().unwrap() > 0,
+        "{}",
+        comms["comms"]
+    );
     // A setting that is not a field is refused by the robot file's loader.
     let bad = tmp.path().join("bad");
     let e = refused(
@@ -104,6 +123,19 @@ fn a_replayed_village_computes_the_live_runs_bytes_and_a_changed_parameter_chang
         &bad,
     );
     assert!(e.contains("sigma_pix"), "{e}");
+    // Another tick would feed the recorded messages at other ticks: refused.
+    let e = refused(
+        &[
+            "replay",
+            &s(&rec),
+            "--set",
+            "dt_secs=0.005",
+            "--out",
+            &s(&bad),
+        ],
+        &bad,
+    );
+    assert!(e.contains("recorded with a 10000000 ns tick"), "{e}");
 
     // Damaged recordings, each refused with the file and the byte.
     let bytes = std::fs::read(&rec).unwrap();
@@ -122,7 +154,11 @@ fn a_replayed_village_computes_the_live_runs_bytes_and_a_changed_parameter_chang
     let flip = tmp.path().join("flip.mcap");
     std::fs::write(&flip, &flipped).unwrap();
     let e = refused(&["replay", &s(&flip), "--out", &s(&bad)], &bad);
-    assert!(e.contains("flip.mcap: at byte"), "{e}");
+    // In the middle of the file is a chunk of images: its CRC, or its zstd frame, fails.
+    assert!(
+        e.contains("flip.mcap: at byte") && e.contains("the chunk"),
+        "{e}"
+    );
     let not_mcap = tmp.path().join("notes.mcap");
     std::fs::write(&not_mcap, b"hello").unwrap();
     let e = refused(&["replay", &s(&not_mcap), "--out", &s(&bad)], &bad);
@@ -322,7 +358,14 @@ fn a_euroc_dump_replays_into_the_vo_and_a_missing_image_is_refused_with_its_row(
     );
     rows[3] = good;
     std::fs::write(&csv, rows.join("\n")).unwrap();
-    std::fs::remove_file(mav0.join("cam0/data").join(&name)).unwrap();
+    // An image that is not a PNG: found when replay reaches it, named with its row.
+    let png = mav0.join("cam0/data").join(&name);
+    let original = std::fs::read(&png).unwrap();
+    std::fs::write(&png, b"not a png").unwrap();
+    let e = refused(&args, &bad);
+    assert!(e.contains("cam0/data.csv: row 4: left image"), "{e}");
+    std::fs::write(&png, original).unwrap();
+    std::fs::remove_file(&png).unwrap();
     let e = refused(&args, &bad);
     assert!(
         e.contains(&format!("cam0/data.csv: row 4: image {name} is missing")),

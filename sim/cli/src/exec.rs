@@ -126,6 +126,9 @@ pub fn run_scenario(loaded: &Scenario, job: &Job<'_>) -> Result<hetsim_eval::Run
         .record
         .map(|(path, encoding)| Recorder::create(path, encoding))
         .transpose()?;
+    if let Some(r) = recorder.as_mut() {
+        r.set_open_loop(job.open_loop);
+    }
     let frames_only = job
         .dump
         .as_ref()

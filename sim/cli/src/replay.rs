@@ -62,6 +62,7 @@ fn load(path: &Path, text: &str, set: &[String], options: LoadOptions) -> Result
 /// Replays and writes the results folder; prints `results:` and `digest:`.
 pub fn replay(args: &ReplayArgs<'_>) -> Result<hetsim_eval::RunFiles> {
     let start = crate::bench::wall_clock();
+    let mut open_loop = false;
     let (scenario, mut recording): (Scenario, Box<dyn Recording>) = if args.source.is_dir() {
         let Some(path) = &args.scenario else {
             bail!(
@@ -140,6 +141,17 @@ pub fn replay(args: &ReplayArgs<'_>) -> Result<hetsim_eval::RunFiles> {
                 )
             })?,
         };
+        // The recording's messages sit on its tick grid: another tick would feed them at
+        // other ticks than the live run did.
+        if scenario.clock.dt_ns() != run.dt_ns {
+            bail!(
+                "{}: recorded with a {} ns tick, the scenario replayed into has {} ns (dt_secs must stay the recording's)",
+                args.source.display(),
+                run.dt_ns,
+                scenario.clock.dt_ns()
+            );
+        }
+        open_loop = run.open_loop;
         (scenario, Box::new(mcap))
     };
     let names: Vec<&str> = scenario
@@ -155,7 +167,7 @@ pub fn replay(args: &ReplayArgs<'_>) -> Result<hetsim_eval::RunFiles> {
             );
         }
     }
-    let stacks = hetsim_stacks::build_stacks(&scenario, false)
+    let stacks = hetsim_stacks::build_stacks(&scenario, open_loop)
         .into_iter()
         .zip(&names)
         .map(|(s, n)| (args.robots.is_empty() || args.robots.iter().any(|r| r == n)).then_some(s))

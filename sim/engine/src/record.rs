@@ -90,6 +90,8 @@ pub struct Recorder {
     sequence: u32,
     /// The delivery time of the sensor message being written, if it is one.
     received_ns: Option<u64>,
+    /// Whether the run's SLAM stacks are open loop (written into `hetsim.run`).
+    open_loop: bool,
     tmp: PathBuf,
     path: PathBuf,
 }
@@ -124,6 +126,7 @@ impl Recorder {
             static_frames: BTreeSet::new(),
             sequence: 0,
             received_ns: None,
+            open_loop: false,
             tmp,
             path: path.to_path_buf(),
         })

@@ -47,6 +47,10 @@ pub struct RunDescription {
     pub duration_secs: f64,
     /// Every robot file's text, by model.
     pub robot_files: BTreeMap<String, String>,
+    /// The tick, nanoseconds.
+    pub dt_ns: u64,
+    /// Whether the SLAM stacks ran open loop (`--open-loop`).
+    pub open_loop: bool,
 }
 
 /// Something recorded.
@@ -81,6 +85,16 @@ pub enum Event {
     },
 }
 
+impl Event {
+    /// When it was measured or sent, nanoseconds.
+    pub fn stamp_ns(&self) -> u64 {
+        match self {
+            Event::Truth { stamp_ns, .. } | Event::Command { stamp_ns, .. } => *stamp_ns,
+            Event::Sensor { msg, .. } => msg.stamp_ns(),
+        }
+    }
+}
+
 /// A recorded event and when it reached the robot (MCAP log time).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Logged {
@@ -96,6 +110,15 @@ pub trait Recording {
     fn next_logged(&mut self) -> Result<Option<Logged>, ReplayError>;
     /// What the physics measured per robot, if the recording says.
     fn outcome(&self) -> Option<&[RecordedOutcome]>;
+    /// The ticks the recorded run ran, if the recording says: the replay runs no more.
+    fn ticks(&self) -> Option<u64> {
+        None
+    }
+    /// Whether the recording holds every command the robots sent (a hetsim recording does,
+    /// a dataset does not): then a replayed stack's command with no recorded one diverges.
+    fn has_commands(&self) -> bool {
+        false
+    }
 }
 
 impl Recording for McapRecording {
@@ -104,6 +127,12 @@ impl Recording for McapRecording {
     }
     fn outcome(&self) -> Option<&[RecordedOutcome]> {
         self.outcome.as_ref().map(|(_, r)| r.as_slice())
+    }
+    fn ticks(&self) -> Option<u64> {
+        self.outcome.as_ref().map(|(t, _)| *t)
+    }
+    fn has_commands(&self) -> bool {
+        true
     }
 }
 
@@ -177,8 +206,9 @@ impl ReplayError {
 }
 
 /// Replays `recording` into `stacks` (scenario order; `None`: that robot is not replayed)
-/// until the scenario's duration, the end of the recording, or two seconds after a stack's
-/// mission is over, as a live run ends. `progress(tick, total)` as in [`crate::run`].
+/// until the scenario's duration or the tick the recorded run ended at (or two seconds
+/// after a replayed stack's mission is over, as a live run ends). `progress(tick, total)` as
+/// in [`crate::run`].
 pub fn replay(
     scenario: &Scenario,
     mut stacks: Vec<Option<Box<dyn RobotStack>>>,
@@ -233,7 +263,11 @@ pub fn replay(
         radio: Vec::new(),
         recorded_cmd: vec![None; n],
     };
-    let total = clock.ticks_in(scenario.duration_secs);
+    // No further than the recorded run went (a mission that ended early ended it).
+    let total = clock
+        .ticks_in(scenario.duration_secs)
+        .min(feed.recording.ticks().unwrap_or(u64::MAX));
+    let checked = feed.recording.has_commands();
     let report_every = clock.ticks_in(1.0).min(total / 100).max(1);
     let mut end = total;
     let linger = clock.ticks_in(2.0);
@@ -266,15 +300,14 @@ pub fn replay(
                 robot: names[i].clone(),
                 error: Box::new(error),
             })?;
-            if let Some(recorded) = feed.recorded_cmd[i].take() {
-                if recorded != cmd {
-                    return Err(ReplayError::Diverged {
-                        robot: names[i].clone(),
-                        stamp_ns: now,
-                        recorded: format!("{recorded:?}"),
-                        replayed: format!("{cmd:?}"),
-                    });
-                }
+            let recorded = feed.recorded_cmd[i].take();
+            if checked && recorded.as_ref() != Some(&cmd) {
+                return Err(ReplayError::Diverged {
+                    robot: names[i].clone(),
+                    stamp_ns: now,
+                    recorded: recorded.map_or("no command".into(), |r| format!("{r:?}")),
+                    replayed: format!("{cmd:?}"),
+                });
             }
             let stack = stacks[i].as_mut().expect("an active robot has a stack");
             // The status right after the step, before the outbox is read, as the live run.

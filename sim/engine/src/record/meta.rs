@@ -37,10 +37,17 @@ impl Recorder {
             format!("{:?}", scenario.duration_secs),
         );
         metadata.insert("dt_ns".into(), scenario.clock.dt_ns().to_string());
+        metadata.insert("open_loop".into(), self.open_loop.to_string());
         for r in &scenario.robots {
             metadata.insert(format!("robot_file/{}", r.spec.model), r.model_text.clone());
         }
         self.metadata(RUN_METADATA, metadata)
+    }
+
+    /// Records that the run's SLAM stacks are open loop (`hetsim run --open-loop`), so that a
+    /// replay builds them the same way. Call before the run.
+    pub fn set_open_loop(&mut self, open_loop: bool) {
+        self.open_loop = open_loop;
     }
 
     /// Writes what the physics measured of each robot, and the ticks run: keys
@@ -59,23 +66,28 @@ impl Recorder {
         self.metadata(OUTCOME_METADATA, metadata)
     }
 
-    /// The outcomes written by [`Recorder::outcome`], if the metadata holds them.
+    /// The outcomes written by [`Recorder::outcome`], or which key is missing or bad.
     pub fn read_outcome(
         metadata: &BTreeMap<String, String>,
-    ) -> Option<(u64, Vec<RecordedOutcome>)> {
-        let ticks = metadata.get("ticks")?.parse().ok()?;
+    ) -> Result<(u64, Vec<RecordedOutcome>), String> {
+        let get = |key: &str| metadata.get(key).ok_or_else(|| format!("no \"{key}\""));
+        let bad = |key: &str, value: &str| format!("\"{key}\" = \"{value}\" is not a number");
+        let ticks = get("ticks")?;
+        let ticks = ticks.parse().map_err(|_| bad("ticks", ticks))?;
         let mut robots = Vec::new();
         for (key, value) in metadata {
             let Some(name) = key.strip_suffix("/distance_m") else {
                 continue;
             };
+            let key_c = format!("{name}/collisions");
+            let collisions = get(&key_c)?;
             robots.push(RecordedOutcome {
                 name: name.to_string(),
-                distance_m: value.parse().ok()?,
-                collisions: metadata.get(&format!("{name}/collisions"))?.parse().ok()?,
+                distance_m: value.parse().map_err(|_| bad(key, value))?,
+                collisions: collisions.parse().map_err(|_| bad(&key_c, collisions))?,
             });
         }
-        Some((ticks, robots))
+        Ok((ticks, robots))
     }
 
     fn metadata(

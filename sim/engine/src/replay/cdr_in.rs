@@ -149,17 +149,29 @@ impl Channel {
 /// `cdr-encoding`, which checks every length against the bytes left before it allocates, so
 /// a corrupt length cannot make it reserve gigabytes.
 fn cdr<'de, T: Deserialize<'de>>(data: &'de [u8]) -> Result<T, String> {
-    let decoded = match data {
-        [0, 1, _, _, rest @ ..] => cdr_encoding::from_bytes::<T, byteorder::LittleEndian>(rest),
-        [0, 0, _, _, rest @ ..] => cdr_encoding::from_bytes::<T, byteorder::BigEndian>(rest),
-        _ => return Err(format!(
+    let (decoded, len) = match data {
+        [0, 1, _, _, rest @ ..] => (
+            cdr_encoding::from_bytes::<T, byteorder::LittleEndian>(rest),
+            rest.len(),
+        ),
+        [0, 0, _, _, rest @ ..] => (
+            cdr_encoding::from_bytes::<T, byteorder::BigEndian>(rest),
+            rest.len(),
+        ),
+        _ => {
+            return Err(format!(
             "not CDR: its encapsulation header is {:02x?}, expected 00 01 (little-endian) or 00 00",
             &data[..data.len().min(4)]
-        )),
+        ))
+        }
     };
-    decoded
-        .map(|(value, _)| value)
-        .map_err(|e| format!("CDR does not decode: {e}"))
+    match decoded {
+        Ok((value, used)) if used == len => Ok(value),
+        Ok((_, used)) => Err(format!(
+            "CDR decodes from {used} of its {len} bytes (a message of another layout?)"
+        )),
+        Err(e) => Err(format!("CDR does not decode: {e}")),
+    }
 }
 
 fn ns(t: &Time) -> Result<u64, String> {

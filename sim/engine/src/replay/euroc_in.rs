@@ -10,7 +10,13 @@
 //! (or earlier, at the scenario's duration or `--duration`).
 //!
 //! Every row of `data.csv` is checked and every image it lists must exist before replay
-//! starts; a bad row or a missing image is refused with the file and row.
+//! starts; a bad row, a missing image, two images on one tick, a ground-truth row that is
+//! not a finite pose, or an image of another size is refused with the file and row.
+//! `T_BS` is not read: the bench's extrinsics are the robot file's, and a dataset whose
+//! cameras are not the rectified, parallel pair the robot file describes replays wrong. Real
+//! EuRoC sequences (752 x 480 with radial-tangential distortion) are refused until they are
+//! rectified. A dataset's ground truth becomes the robot's oracle where its robot file
+//! declares one (the pilot's truth), in the dataset's own world frame.
 
 use super::{Event, Logged, Recording, ReplayError};
 use crate::record::RecordedOutcome;
@@ -37,12 +43,15 @@ pub struct BenchSpec {
 
 enum Item {
     Truth(hetsim_msgs::Pose),
-    Pair(PathBuf, PathBuf),
+    /// `cam0/data.csv`'s row, the left and the right image.
+    Pair(usize, PathBuf, PathBuf),
 }
 
 /// A EuRoC dataset, open for replay.
 pub struct EurocRecording {
     spec: BenchSpec,
+    /// `cam0/data.csv`, named with its row when an image of a pair is bad.
+    cam0: PathBuf,
     items: VecDeque<(u64, u64, Item)>,
     pending: VecDeque<Logged>,
 }
@@ -82,7 +91,7 @@ fn yaml_list(path: &Path, text: &str, key: &str) -> Result<Vec<f64>, ReplayError
         .lines()
         .enumerate()
         .find(|(_, l)| l.trim_start().starts_with(&format!("{key}:")))
-        .ok_or_else(|| row_error(path, 0, format!("no \"{key}\" field")))?;
+        .ok_or_else(|| ReplayError::Mismatch(format!("{}: no \"{key}\" field", path.display())))?;
     let list = line
         .split_once('[')
         .and_then(|(_, r)| r.split_once(']'))
@@ -134,7 +143,9 @@ fn check_camera(dir: &Path, spec: &BenchSpec) -> Result<(), ReplayError> {
             format!("{:?}", spec.intrinsics),
         ));
     }
-    if let Ok(d) = yaml_list(&path, &text, "distortion_coefficients") {
+    // Absent distortion is none; a malformed list is refused.
+    if text.contains("distortion_coefficients:") {
+        let d = yaml_list(&path, &text, "distortion_coefficients")?;
         if d.iter().any(|c| *c != 0.0) {
             return Err(mismatch(
                 "distortion_coefficients",
@@ -146,8 +157,8 @@ fn check_camera(dir: &Path, spec: &BenchSpec) -> Result<(), ReplayError> {
     Ok(())
 }
 
-/// A camera's rows: stamp and image path, every image checked to exist.
-fn camera(dir: &Path) -> Result<Vec<(u64, PathBuf)>, ReplayError> {
+/// A camera's rows: row number, stamp and image path, every image checked to exist.
+fn camera(dir: &Path) -> Result<Vec<(usize, u64, PathBuf)>, ReplayError> {
     let csv = dir.join("data.csv");
     let mut out = Vec::new();
     for (row, fields) in rows(&csv)? {
@@ -166,7 +177,7 @@ fn camera(dir: &Path) -> Result<Vec<(u64, PathBuf)>, ReplayError> {
                 format!("image {name} is missing ({})", image.display()),
             ));
         }
-        out.push((stamp(&csv, row, t)?, image));
+        out.push((row, stamp(&csv, row, t)?, image));
     }
     if out.is_empty() {
         return Err(row_error(&csv, 1, "no images listed"));
@@ -187,8 +198,8 @@ impl EurocRecording {
             check_camera(&mav0.join(cam), &spec)?;
         }
         let (left, right) = (camera(&mav0.join("cam0"))?, camera(&mav0.join("cam1"))?);
-        let shift = if left[0].0 > 86_400_000_000_000 {
-            left[0].0
+        let shift = if left[0].1 > 86_400_000_000_000 {
+            left[0].1
         } else {
             0
         };
@@ -201,26 +212,31 @@ impl EurocRecording {
                     format!("timestamp {t} is before the first image's"),
                 )
             })?;
-            let tick = (rel + dt / 2) / dt;
-            Ok(tick * dt)
+            // The nearest tick, in whole nanoseconds that fit: a stamp near 2^64 is refused.
+            rel.checked_add(dt / 2)
+                .map(|r| r / dt * dt)
+                .filter(|log| *log <= u64::MAX / 2)
+                .ok_or_else(|| row_error(path, row, format!("timestamp {t} is out of range")))
         };
-        let cam1 = mav0.join("cam1/data.csv");
+        let cam0 = mav0.join("cam0/data.csv");
         let mut items = Vec::new();
         let right_at: std::collections::BTreeMap<u64, &PathBuf> =
-            right.iter().map(|(t, p)| (*t, p)).collect();
-        for (row, (t, l)) in left.iter().enumerate() {
+            right.iter().map(|(_, t, p)| (*t, p)).collect();
+        // One pair per tick: two would reach the robot as one inbox with two pairs.
+        let mut ticks: std::collections::BTreeMap<u64, usize> = Default::default();
+        for (row, t, l) in &left {
             let r = right_at.get(t).ok_or_else(|| {
-                row_error(
-                    &cam1,
-                    0,
-                    format!(
-                        "no image at timestamp {t}, which cam0/data.csv row {} has",
-                        row + 2
-                    ),
-                )
+                row_error(&cam0, *row, format!("no cam1 image has its timestamp {t}"))
             })?;
-            let log = on_grid(&mav0.join("cam0/data.csv"), row + 2, *t)?;
-            items.push((log, 1, Item::Pair(l.clone(), (*r).clone())));
+            let log = on_grid(&cam0, *row, *t)?;
+            if let Some(other) = ticks.insert(log, *row) {
+                return Err(row_error(
+                    &cam0,
+                    *row,
+                    format!("timestamp {t} falls on the same {dt} ns tick as row {other}'s"),
+                ));
+            }
+            items.push((log, 1, Item::Pair(*row, l.clone(), (*r).clone())));
         }
         let truth_csv = mav0.join("state_groundtruth_estimate0/data.csv");
         if truth_csv.is_file() {
@@ -244,9 +260,15 @@ impl EurocRecording {
                 if t < shift {
                     continue;
                 }
-                let q = nalgebra::UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(
-                    v[3], v[4], v[5], v[6],
-                ));
+                let q = nalgebra::Quaternion::new(v[3], v[4], v[5], v[6]);
+                if v.iter().any(|x| !x.is_finite()) || (q.norm() - 1.0).abs() > 1e-3 {
+                    return Err(row_error(
+                        &truth_csv,
+                        row,
+                        "a finite position and a unit quaternion (w x y z) expected",
+                    ));
+                }
+                let q = nalgebra::UnitQuaternion::from_quaternion(q);
                 let pose = nalgebra::Isometry3::from_parts(
                     nalgebra::Translation3::new(v[0], v[1], v[2]),
                     q,
@@ -258,6 +280,7 @@ impl EurocRecording {
         items.sort_by_key(|(log, order, _)| (*log, *order));
         Ok(Self {
             spec,
+            cam0,
             items: items
                 .into_iter()
                 .map(|(log, _, item)| (log, log, item))
@@ -276,21 +299,36 @@ impl EurocRecording {
             .unwrap_or(0)
     }
 
-    fn image(&self, path: &Path, stamp_ns: u64, eye: &str) -> Result<SensorMsg, ReplayError> {
-        let img = image::open(path).map_err(|e| ReplayError::file(path, e))?;
+    /// The image of a pair (row `row` of `cam0/data.csv`), decoded and checked against the
+    /// bench's size.
+    fn image(
+        &self,
+        row: usize,
+        path: &Path,
+        stamp_ns: u64,
+        eye: &str,
+    ) -> Result<SensorMsg, ReplayError> {
+        let at = |what: String| {
+            row_error(
+                &self.cam0,
+                row,
+                format!("{eye} image {}: {what}", path.display()),
+            )
+        };
+        let img = image::open(path).map_err(|e| at(e.to_string()))?;
+        let (w, h) = (self.spec.width, self.spec.height);
+        if (img.width(), img.height()) != (w, h) {
+            return Err(at(format!(
+                "{} x {} pixels, the bench's {w} x {h} expected",
+                img.width(),
+                img.height()
+            )));
+        }
         let (encoding, data) = match img {
             image::DynamicImage::ImageLuma8(g) => (PixelEncoding::Mono8, g.into_raw()),
             image::DynamicImage::ImageRgb8(c) => (PixelEncoding::Rgb8, c.into_raw()),
             other => (PixelEncoding::Mono8, other.to_luma8().into_raw()),
         };
-        let (w, h) = (self.spec.width, self.spec.height);
-        let size = data.len() as u64 / encoding.channels() as u64;
-        if size != w as u64 * h as u64 {
-            return Err(ReplayError::Mismatch(format!(
-                "{}: {size} pixels, the bench's {w} x {h} expected",
-                path.display()
-            )));
-        }
         Ok(SensorMsg::Image(Image {
             stamp_ns,
             sensor: format!("{}/{eye}", self.spec.bench),
@@ -317,9 +355,9 @@ impl Recording for EurocRecording {
                 stamp_ns,
                 pose,
             },
-            Item::Pair(left, right) => {
+            Item::Pair(row, left, right) => {
                 let topic = |eye: &str| format!("{}/{}/{eye}", self.spec.robot, self.spec.bench);
-                let right = self.image(&right, stamp_ns, "right")?;
+                let right = self.image(row, &right, stamp_ns, "right")?;
                 self.pending.push_back(Logged {
                     log_ns,
                     event: Event::Sensor {
@@ -331,7 +369,7 @@ impl Recording for EurocRecording {
                 Event::Sensor {
                     robot,
                     topic: topic("left"),
-                    msg: self.image(&left, stamp_ns, "left")?,
+                    msg: self.image(row, &left, stamp_ns, "left")?,
                 }
             }
         };

@@ -35,6 +35,8 @@ pub struct McapRecording {
     channels: HashMap<u16, cdr_in::Channel>,
     messages: u64,
     data_end: u64,
+    /// The last message's log time: log times never decrease.
+    last_log_ns: u64,
 }
 
 /// One framed record in a buffer: opcode, body, and the offset after it.
@@ -169,7 +171,9 @@ impl McapRecording {
             .map_err(|w| bad(0, format!("{w}: not a recording hetsim run --record wrote")))?;
         let outcome = metadata
             .get(OUTCOME_METADATA)
-            .and_then(crate::record::Recorder::read_outcome);
+            .map(crate::record::Recorder::read_outcome)
+            .transpose()
+            .map_err(|w| bad(0, format!("the \"{OUTCOME_METADATA}\" metadata: {w}")))?;
         Ok(Self {
             file,
             len,
@@ -182,6 +186,7 @@ impl McapRecording {
             channels: HashMap::new(),
             messages: 0,
             data_end,
+            last_log_ns: 0,
         })
     }
 
@@ -355,13 +360,35 @@ impl McapRecording {
                         ),
                     )
                 })?;
-                return Ok(match decoded {
-                    Decoded::Skip => None,
-                    Decoded::Event(event) => Some(Logged {
-                        log_ns: header.log_time,
-                        event,
-                    }),
-                });
+                let Decoded::Event(event) = decoded else {
+                    return Ok(None);
+                };
+                // Delivery times on the tick grid, never decreasing, never before the stamp:
+                // anything else would feed the robots at the wrong ticks.
+                let log = header.log_time;
+                let stamp = event.stamp_ns();
+                let dt = self.run.dt_ns.max(1);
+                let wrong = if log % dt != 0 {
+                    Some(format!("is not on the {dt} ns tick grid"))
+                } else if log < self.last_log_ns {
+                    Some(format!(
+                        "is before the previous message's ({} ns)",
+                        self.last_log_ns
+                    ))
+                } else if log < stamp {
+                    Some(format!("is before the message's own stamp ({stamp} ns)"))
+                } else {
+                    None
+                };
+                if let Some(w) = wrong {
+                    let topic = &self.channels[&header.channel_id].topic;
+                    return Err(self.corrupt(
+                        at,
+                        format!("message {index} on {topic}: its log time {log} ns {w}"),
+                    ));
+                }
+                self.last_log_ns = log;
+                return Ok(Some(Logged { log_ns: log, event }));
             }
             _ => {}
         }
@@ -382,6 +409,10 @@ impl RunDescription {
                 .map_err(|e| format!("\"{RUN_METADATA}\" metadata \"{k}\": {e}"))
         };
         Ok(Self {
+            dt_ns: get("dt_ns")?
+                .parse()
+                .map_err(|e| format!("\"{RUN_METADATA}\" metadata \"dt_ns\": {e}"))?,
+            open_loop: get("open_loop")? == "true",
             scenario_path: PathBuf::from(get("scenario_path")?),
             scenario_text: get("scenario")?.clone(),
             seed: get("seed")?
