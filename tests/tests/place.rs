@@ -50,8 +50,9 @@ fn keyframe(r: &mut Renderer, m: &Pose) -> KeyFrame {
     let right = m * pose_from_xyz_rpy([0.0, -BASELINE, 0.0], [0.0; 3]);
     let views = [m, &right].map(|m| CameraView::from_mount(K, m, [0.05, 3000.0]));
     let f = r.render(&views);
-    let gray =
-        |f: &hetsim_render::Frame| Gray::from_rgb(f.width as usize, f.height as usize, &f.rgb());
+    let gray = |f: &hetsim_render::Frame| {
+        Gray::from_rgb(f.width as usize, f.height as usize, &f.rgb()).expect("w x h x 3")
+    };
     let (l, rt) = (gray(&f[0]), gray(&f[1]));
     let corners = detect(&l, 0.005, 8);
     let chosen = select_new(&corners, l.width, l.height, &[], 25, 8.0);

@@ -150,7 +150,7 @@ fn lab_mission_images_every_reachable_vertex_with_a_stable_digest() {
             [0.0, 0.0, yaw],
         );
         let f = r.render(&[CameraView::from_mount(k, &(body * mount), [0.01, 100.0])]);
-        let q = Features::of(&Gray::from_rgb(120, 88, &f[0].rgb()));
+        let q = Features::of(&Gray::from_rgb(120, 88, &f[0].rgb()).expect("120 x 88 x 3"));
         let m = best_match(&q, &features, Feature::Wgoh).unwrap();
         own += usize::from(db[m].vertex == db[i].vertex);
     }

@@ -38,7 +38,7 @@ fn bench_views(mount: &Pose, baseline: f64) -> [CameraView; 2] {
 }
 
 fn gray(f: &hetsim_render::Frame) -> Gray {
-    Gray::from_rgb(f.width as usize, f.height as usize, &f.rgb())
+    Gray::from_rgb(f.width as usize, f.height as usize, &f.rgb()).expect("w x h x 3")
 }
 
 /// The rover's bench at the entry of the north-west village, looking into it.

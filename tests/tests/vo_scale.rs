@@ -51,7 +51,7 @@ fn tum(path: &Path) -> Vec<(f64, Pose)> {
 
 fn gray(path: &Path) -> Gray {
     let img = image::open(path).unwrap().to_rgb8();
-    Gray::from_rgb(img.width() as usize, img.height() as usize, img.as_raw())
+    Gray::from_rgb(img.width() as usize, img.height() as usize, img.as_raw()).expect("w x h x 3")
 }
 
 /// Per tracked frame of `robot`'s stereo bench: estimated over true translation length.

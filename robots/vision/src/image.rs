@@ -14,30 +14,37 @@ pub struct Gray {
 }
 
 impl Gray {
-    /// Luminance (ITU-R BT.601 weights) of an RGB image.
-    pub fn from_rgb(width: usize, height: usize, rgb: &[u8]) -> Self {
+    /// Luminance (ITU-R BT.601 weights) of an RGB image; `None` unless `rgb` holds exactly
+    /// `width x height x 3` bytes (a shorter buffer would make [`Gray::at`] read past its end).
+    pub fn from_rgb(width: usize, height: usize, rgb: &[u8]) -> Option<Self> {
+        if width.checked_mul(height)?.checked_mul(3)? != rgb.len() {
+            return None;
+        }
         let data = rgb
             .chunks_exact(3)
             .map(|p| 0.299 * p[0] as f32 + 0.587 * p[1] as f32 + 0.114 * p[2] as f32)
             .collect();
-        Self {
+        Some(Self {
             width,
             height,
             data,
-        }
+        })
     }
 
     /// The grey image a camera message carries: its grey levels as they are (`mono8`), or
-    /// the luminance of its RGB ([`Gray::from_rgb`]).
-    pub fn from_image(image: &hetsim_msgs::Image) -> Self {
+    /// the luminance of its RGB ([`Gray::from_rgb`]); `None` unless its bytes are its
+    /// width x height x channels.
+    pub fn from_image(image: &hetsim_msgs::Image) -> Option<Self> {
         let (w, h) = (image.width as usize, image.height as usize);
         match image.encoding {
             hetsim_msgs::PixelEncoding::Rgb8 => Self::from_rgb(w, h, &image.data),
-            hetsim_msgs::PixelEncoding::Mono8 => Self {
-                width: w,
-                height: h,
-                data: image.data.iter().map(|&g| g as f32).collect(),
-            },
+            hetsim_msgs::PixelEncoding::Mono8 => {
+                (w.checked_mul(h)? == image.data.len()).then(|| Self {
+                    width: w,
+                    height: h,
+                    data: image.data.iter().map(|&g| g as f32).collect(),
+                })
+            }
         }
     }
 
@@ -131,6 +138,30 @@ impl Camera {
 mod tests {
     use super::*;
     use rand::{RngExt, SeedableRng};
+
+    #[test]
+    fn a_buffer_that_is_not_its_size_makes_no_image() {
+        // The example: 4 x 3 RGB needs 36 bytes; 35 or 37 would leave `at` reading
+        // past the end or the rows misaligned.
+        assert!(Gray::from_rgb(4, 3, &[0; 35]).is_none());
+        assert!(Gray::from_rgb(4, 3, &[0; 37]).is_none());
+        assert!(
+            Gray::from_rgb(usize::MAX, 3, &[]).is_none(),
+            "no overflowing product"
+        );
+        let g = Gray::from_rgb(4, 3, &[9; 36]).unwrap();
+        assert_eq!((g.width, g.height, g.data.len()), (4, 3, 12));
+        let mono = |bytes: usize| hetsim_msgs::Image {
+            stamp_ns: 0,
+            sensor: "c".into(),
+            width: 4,
+            height: 3,
+            encoding: hetsim_msgs::PixelEncoding::Mono8,
+            data: vec![7; bytes],
+        };
+        assert!(Gray::from_image(&mono(11)).is_none());
+        assert_eq!(Gray::from_image(&mono(12)).unwrap().at(3, 2), 7.0);
+    }
 
     #[test]
     fn project_back_project_round_trip_and_jacobian_match_finite_differences() {

@@ -346,8 +346,8 @@ pub fn vision(scenario: &Path) -> Result<Figures> {
             .collect();
         let f = renderer.render(&views);
         (
-            Gray::from_rgb(w, h, &f[0].rgb()),
-            Gray::from_rgb(w, h, &f[1].rgb()),
+            Gray::from_rgb(w, h, &f[0].rgb()).expect("a rendered frame is w x h x 3"),
+            Gray::from_rgb(w, h, &f[1].rgb()).expect("a rendered frame is w x h x 3"),
         )
     };
     let frames: Vec<(Gray, Gray)> = (0..11)

@@ -42,10 +42,33 @@ pub fn sample_memory(trace: Option<&MemoryTrace>, sim_secs: f64) {
 
 /// This process's resident set (`VmRSS` of /proc/self/status), MiB; `None` off Linux.
 pub fn resident_mib() -> Option<f64> {
+    status_mib("VmRSS:")
+}
+
+/// This process's peak resident set so far (`VmHWM`), MiB; `None` off Linux.
+pub fn peak_resident_mib() -> Option<f64> {
+    status_mib("VmHWM:")
+}
+
+/// A memory trace as CSV (`sim_s,rss_mib`), then the process's peak as `peak,<MiB>`.
+pub fn write_memory_trace(path: &Path, trace: &[(f64, f64)]) -> Result<()> {
+    let mut csv = String::from("sim_s,rss_mib\n");
+    for (t, m) in trace {
+        csv.push_str(&format!("{t:.2},{m:.1}\n"));
+    }
+    csv.push_str(&format!(
+        "peak,{:.1}\n",
+        peak_resident_mib().unwrap_or(f64::NAN)
+    ));
+    hetsim_core::files::write_atomic(path, csv.as_bytes())?;
+    Ok(())
+}
+
+fn status_mib(key: &str) -> Option<f64> {
     let status = std::fs::read_to_string("/proc/self/status").ok()?;
     let kb: f64 = status
         .lines()
-        .find_map(|l| l.strip_prefix("VmRSS:"))?
+        .find_map(|l| l.strip_prefix(key))?
         .trim()
         .trim_end_matches("kB")
         .trim()

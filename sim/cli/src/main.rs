@@ -141,6 +141,10 @@ enum Cmd {
         /// Replay only the first SECS sim seconds.
         #[arg(long)]
         duration: Option<f64>,
+        /// Also write this process's resident memory at every sim second to FILE (CSV:
+        /// sim_s,rss_mib), and its peak as the last row (`peak`).
+        #[arg(long)]
+        memory_trace: Option<PathBuf>,
     },
     /// Check scenario and robot files without running anything.
     Validate {
@@ -357,7 +361,9 @@ fn real_main() -> Result<()> {
             set,
             scenario,
             duration,
+            memory_trace,
         } => {
+            let trace = exec::MemoryTrace::default();
             let files = replay::replay(&replay::ReplayArgs {
                 source,
                 robots,
@@ -366,8 +372,11 @@ fn real_main() -> Result<()> {
                 scenario,
                 duration,
                 quiet: false,
-                memory: None,
+                memory: memory_trace.is_some().then_some(&trace),
             })?;
+            if let Some(path) = memory_trace {
+                exec::write_memory_trace(&path, &trace.into_inner().expect("memory trace lock"))?;
+            }
             println!("results: {}", files.dir.display());
             println!("digest: {}", files.digest);
         }

@@ -42,7 +42,8 @@ pub fn database_of(
             let p = crate::scene::truth_at(track, d.image.stamp_ns)
                 .translation
                 .vector;
-            let gray = Gray::from_image(&d.image);
+            let gray = Gray::from_image(&d.image)
+                .expect("the child's stack accepted the image: its bytes are its size");
             Some(DbImage {
                 vertex: d.vertex,
                 estimated_xy: d.estimated_xy,
@@ -92,7 +93,8 @@ pub fn load_database(run: &Path) -> Result<Vec<DbImage>, EvalError> {
                     message: e.to_string(),
                 })?
                 .to_rgb8();
-            let gray = Gray::from_rgb(img.width() as usize, img.height() as usize, img.as_raw());
+            let gray = Gray::from_rgb(img.width() as usize, img.height() as usize, img.as_raw())
+                .expect("an RGB image's buffer is w x h x 3");
             Ok(DbImage {
                 vertex: (vertex[0] as usize, vertex[1] as usize),
                 estimated_xy: field("estimated_xy_m")?,
@@ -268,11 +270,10 @@ pub fn particle_filter_path(
                     .clamp(0.0, 255.0) as u8
             })
             .collect();
-        shots.push(Features::of(&Gray::from_rgb(
-            k.width as usize,
-            k.height as usize,
-            &rgb,
-        )));
+        shots.push(Features::of(
+            &Gray::from_rgb(k.width as usize, k.height as usize, &rgb)
+                .expect("a rendered frame is w x h x 3"),
+        ));
         true_xy.push(xy);
     }
     // The drives between shots as the child measures them: encoders 2 %, compass.

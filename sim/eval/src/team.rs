@@ -249,7 +249,8 @@ pub fn files(
             .iter()
             .find(|(n, _)| *n == d.child)
             .map(|(_, t)| truth_at(t, d.image.stamp_ns));
-        let gray = hetsim_vision::Gray::from_image(&d.image);
+        let gray = hetsim_vision::Gray::from_image(&d.image)
+            .expect("the child's stack accepted the image: its bytes are its size");
         let features = hetsim_vision::appearance::Features::of(&gray);
         entries.push(json!({
             "wgoh": features.wgoh.0,

@@ -1,71 +1,93 @@
 //! `hetsim bench --replay`: a scenario run live with its recording, then the recording
-//! replayed, back to back in one process: both speeds, the ratio, the recording's size, the
-//! peak resident memory of each, and whether the replay reproduced the live run's digest.
+//! replayed in a process of its own, back to back: both speeds, the ratio, the recording's
+//! size, the peak resident memory of each, and whether the replay reproduced the live run's
+//! digest.
 //! With `--out DIR`, each phase's resident memory against sim time as `memory.csv` and
 //! `memory.png`.
 
 use super::Figures;
 use crate::exec::{Job, MemoryTrace};
-use crate::replay::ReplayArgs;
 use anyhow::{Context, Result};
 use serde_json::json;
 use std::path::Path;
 
-/// One phase's figures: wall seconds, the trace, and the digest.
+/// One phase's figures: wall seconds, resident memory against sim time, the peak, and the
+/// digest.
 struct Phase {
     wall: f64,
     trace: Vec<(f64, f64)>,
+    peak: f64,
     digest: String,
 }
 
-fn timed(f: impl FnOnce(&MemoryTrace) -> Result<String>) -> Result<Phase> {
-    let trace = MemoryTrace::default();
-    let start = super::wall_clock();
-    let digest = f(&trace)?;
-    let wall = start.elapsed().as_secs_f64();
-    Ok(Phase {
-        wall,
-        trace: trace.into_inner().expect("memory trace lock"),
-        digest,
-    })
-}
-
-/// Runs `scenario` for `sim_secs` rendered and recorded, then replays the recording.
+/// Runs `scenario` for `sim_secs` rendered and recorded (in this process), then replays
+/// the recording in a process of its own, so that neither phase's memory holds the other's.
+/// The live run's results folder is kept in `results/runs/bench-replay-<name>`.
 pub fn replay(scenario: &Path, sim_secs: f64, out: Option<&Path>) -> Result<Figures> {
     let loaded = super::load_for(scenario, sim_secs)?;
     let tmp = tempfile::tempdir().context("a temporary folder for the recording")?;
     let rec = tmp.path().join("run.mcap");
-    let live = timed(|memory| {
-        let files = crate::exec::run_scenario(
-            &loaded,
-            &Job {
-                out: Some(&tmp.path().join("live")),
-                record: Some((&rec, hetsim_engine::record::RecordEncoding::Ros2)),
-                render: Some(hetsim_render::RenderOptions::default()),
-                dump: None,
-                open_loop: false,
-                quiet: false,
-                memory: Some(memory),
-            },
-        )?;
-        Ok(files.digest)
-    })?;
+    let kept = Path::new("results/runs").join(format!("bench-replay-{}", loaded.file.name));
+    let trace = MemoryTrace::default();
+    let start = super::wall_clock();
+    let files = crate::exec::run_scenario(
+        &loaded,
+        &Job {
+            out: Some(&kept),
+            record: Some((&rec, hetsim_engine::record::RecordEncoding::Ros2)),
+            render: Some(hetsim_render::RenderOptions::default()),
+            dump: None,
+            open_loop: false,
+            quiet: false,
+            memory: Some(&trace),
+        },
+    )?;
+    let live = Phase {
+        wall: start.elapsed().as_secs_f64(),
+        trace: trace.into_inner().expect("memory trace lock"),
+        peak: crate::exec::peak_resident_mib().unwrap_or(f64::NAN),
+        digest: files.digest,
+    };
     let bytes = std::fs::metadata(&rec)
         .with_context(|| format!("{}", rec.display()))?
         .len();
-    let replayed = timed(|memory| {
-        let files = crate::replay::replay(&ReplayArgs {
-            source: rec.clone(),
-            robots: Vec::new(),
-            out: Some(tmp.path().join("replay")),
-            set: Vec::new(),
-            scenario: None,
-            duration: None,
-            quiet: false,
-            memory: Some(memory),
-        })?;
-        Ok(files.digest)
-    })?;
+    // The replay in a fresh process: `hetsim replay REC --memory-trace FILE`.
+    let memory = tmp.path().join("replay-memory.csv");
+    let exe = std::env::current_exe().context("this executable's path")?;
+    let start = super::wall_clock();
+    let child = std::process::Command::new(exe)
+        .arg("replay")
+        .arg(&rec)
+        .arg("--out")
+        .arg(tmp.path().join("replay"))
+        .arg("--memory-trace")
+        .arg(&memory)
+        .stderr(std::process::Stdio::inherit())
+        .output()
+        .context("running hetsim replay")?;
+    let wall = start.elapsed().as_secs_f64();
+    let stdout = String::from_utf8_lossy(&child.stdout);
+    anyhow::ensure!(child.status.success(), "hetsim replay failed: {stdout}");
+    let digest = stdout
+        .lines()
+        .find_map(|l| l.strip_prefix("digest: "))
+        .context("hetsim replay printed no digest")?
+        .to_string();
+    let (mut trace, mut peak) = (Vec::new(), f64::NAN);
+    for line in std::fs::read_to_string(&memory)?.lines().skip(1) {
+        let (a, b) = line.split_once(',').context("a memory trace row")?;
+        let mib: f64 = b.parse()?;
+        match a {
+            "peak" => peak = mib,
+            t => trace.push((t.parse()?, mib)),
+        }
+    }
+    let replayed = Phase {
+        wall,
+        trace,
+        peak,
+        digest,
+    };
     let mut f = Figures::new(
         "replay",
         &[
@@ -73,10 +95,9 @@ pub fn replay(scenario: &Path, sim_secs: f64, out: Option<&Path>) -> Result<Figu
             ("sim_s", "sim s"),
             ("wall_s", "wall s"),
             ("realtime", "x real time"),
-            ("peak_rss_mib", "peak RSS MiB"),
+            ("peak_rss_mib", "peak RSS MiB (VmHWM)"),
         ],
     );
-    let peak = |t: &[(f64, f64)]| t.iter().map(|p| p.1).fold(0.0, f64::max);
     for (name, p) in [
         ("live, rendering and recording", &live),
         ("replay", &replayed),
@@ -86,7 +107,7 @@ pub fn replay(scenario: &Path, sim_secs: f64, out: Option<&Path>) -> Result<Figu
             json!(sim_secs),
             json!(p.wall),
             json!(sim_secs / p.wall.max(1e-9)),
-            json!(peak(&p.trace)),
+            json!(p.peak),
         ]);
     }
     let mb = bytes as f64 / 1e6;
@@ -106,6 +127,8 @@ pub fn replay(scenario: &Path, sim_secs: f64, out: Option<&Path>) -> Result<Figu
     f.about
         .insert("same_digest".into(), json!(live.digest == replayed.digest));
     f.about.insert("digest".into(), json!(live.digest));
+    f.about
+        .insert("live_results".into(), json!(kept.display().to_string()));
     if let Some(dir) = out {
         std::fs::create_dir_all(dir).with_context(|| format!("{}", dir.display()))?;
         let mut csv = String::from("phase,sim_s,rss_mib\n");
