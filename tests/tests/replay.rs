@@ -217,19 +217,25 @@ fn a_replayed_coverage_mission_sends_every_recorded_command_or_stops_at_the_firs
     let tmp = tempfile::tempdir().unwrap();
     let s = |p: &Path| p.to_str().unwrap().to_string();
     let (rec, live) = (tmp.path().join("lab.mcap"), tmp.path().join("live"));
+    // The whole mission, rendered: the children grab their images, the parent teleoperates
+    // them to every vertex, and the run ends two seconds after the parent says it is over.
     let live_digest = ok(&[
         "run",
         "scenarios/lab.toml",
-        "--duration",
-        "30",
-        "--no-render",
         "--record",
         &s(&rec),
         "--out",
         &s(&live),
     ]);
-    // The parent's plan, its orders over the radio and the children's driving: every command
-    // the replayed stacks send is the recorded one (replay checks each), and so is the digest.
+    let metrics: serde_json::Value = serde_json::from_slice(&file(&live, "metrics.json")).unwrap();
+    assert_eq!(
+        metrics["team"]["imaged_fraction"].as_f64(),
+        Some(1.0),
+        "the mission images every vertex"
+    );
+    // The parent's plan, its orders over the radio and the children's driving and grabs:
+    // every command the replayed stacks send is the recorded one (replay checks each), the
+    // replay ends where the mission ended, and the digest is the live run's.
     let replay = tmp.path().join("replay");
     assert_eq!(ok(&["replay", &s(&rec), "--out", &s(&replay)]), live_digest);
     // A child that drives faster sends other wheel speeds: the replay stops there.

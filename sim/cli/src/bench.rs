@@ -9,15 +9,12 @@ use serde_json::{json, Map, Value};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-mod replay;
-pub use replay::replay;
-
 /// One bench's figures: named columns, one row per measured case.
 pub struct Figures {
     /// Which bench.
     bench: &'static str,
     /// Facts about the measurement (adapter, frame size).
-    about: Map<String, Value>,
+    pub(crate) about: Map<String, Value>,
     /// `(key, header)` of each column, in order.
     columns: Vec<(&'static str, &'static str)>,
     /// Rows, each keyed by column key.
@@ -25,7 +22,7 @@ pub struct Figures {
 }
 
 impl Figures {
-    fn new(bench: &'static str, columns: &[(&'static str, &'static str)]) -> Self {
+    pub(crate) fn new(bench: &'static str, columns: &[(&'static str, &'static str)]) -> Self {
         Self {
             bench,
             about: Map::new(),
@@ -34,7 +31,7 @@ impl Figures {
         }
     }
 
-    fn row(&mut self, values: Vec<Value>) {
+    pub(crate) fn row(&mut self, values: Vec<Value>) {
         debug_assert_eq!(values.len(), self.columns.len());
         self.rows.push(
             self.columns
@@ -94,7 +91,7 @@ pub fn wall_clock() -> Instant {
 }
 
 /// A scenario with its own seed, run for `secs` sim seconds.
-fn load_for(path: &Path, secs: f64) -> Result<Scenario> {
+pub(crate) fn load_for(path: &Path, secs: f64) -> Result<Scenario> {
     Ok(load_scenario(
         path,
         &LoadOptions {

@@ -5,6 +5,7 @@
 //! regression), [`bench`] the speed figures.
 
 mod bench;
+mod bench_replay;
 mod exec;
 mod replay;
 mod slurm;
@@ -435,7 +436,7 @@ fn real_main() -> Result<()> {
             json,
         } => {
             let figures = if replay {
-                bench::replay(&scenarios[0], sim_secs, out.as_deref())?
+                bench_replay::replay(&scenarios[0], sim_secs, out.as_deref())?
             } else if slam {
                 bench::slam()
             } else if vision {

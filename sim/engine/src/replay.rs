@@ -51,6 +51,9 @@ pub struct RunDescription {
     pub dt_ns: u64,
     /// Whether the SLAM stacks ran open loop (`--open-loop`).
     pub open_loop: bool,
+    /// Whether the live run rendered its cameras (then the evaluation, which may render
+    /// what it needs, such as the coverage mission's localization paths, renders again).
+    pub rendered: bool,
 }
 
 /// Something recorded.

@@ -232,7 +232,7 @@ fn run_on_worker(
         received_ns: 0,
     };
     if let Some(r) = post.recorder.as_deref_mut() {
-        r.describe(scenario)?;
+        r.describe(scenario, render.is_some())?;
     }
     // What each stack computed (its commands and radio messages), digested per robot.
     let mut stack_digests: Vec<RunDigest> = (0..n).map(|_| RunDigest::new()).collect();

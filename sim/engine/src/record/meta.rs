@@ -25,8 +25,9 @@ pub struct RecordedOutcome {
 
 impl Recorder {
     /// Writes the run's description: scenario file text and path, every robot file's text
-    /// (key `robot_file/<model>`), seed, duration and tick length.
-    pub fn describe(&mut self, scenario: &Scenario) -> Result<(), RecordError> {
+    /// (key `robot_file/<model>`), seed, duration, tick length, open loop, and whether the
+    /// cameras were rendered.
+    pub fn describe(&mut self, scenario: &Scenario, rendered: bool) -> Result<(), RecordError> {
         let mut metadata = BTreeMap::new();
         metadata.insert("hetsim_version".into(), env!("CARGO_PKG_VERSION").into());
         metadata.insert("scenario_path".into(), scenario.path.display().to_string());
@@ -38,6 +39,7 @@ impl Recorder {
         );
         metadata.insert("dt_ns".into(), scenario.clock.dt_ns().to_string());
         metadata.insert("open_loop".into(), self.open_loop.to_string());
+        metadata.insert("rendered".into(), rendered.to_string());
         for r in &scenario.robots {
             metadata.insert(format!("robot_file/{}", r.spec.model), r.model_text.clone());
         }

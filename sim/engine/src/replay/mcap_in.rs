@@ -413,6 +413,7 @@ impl RunDescription {
                 .parse()
                 .map_err(|e| format!("\"{RUN_METADATA}\" metadata \"dt_ns\": {e}"))?,
             open_loop: get("open_loop")? == "true",
+            rendered: get("rendered")? == "true",
             scenario_path: PathBuf::from(get("scenario_path")?),
             scenario_text: get("scenario")?.clone(),
             seed: get("seed")?

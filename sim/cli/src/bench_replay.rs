@@ -5,7 +5,7 @@
 //! With `--out DIR`, each phase's resident memory against sim time as `memory.csv` and
 //! `memory.png`.
 
-use super::Figures;
+use crate::bench::Figures;
 use crate::exec::{Job, MemoryTrace};
 use anyhow::{Context, Result};
 use serde_json::json;
@@ -24,12 +24,12 @@ struct Phase {
 /// the recording in a process of its own, so that neither phase's memory holds the other's.
 /// The live run's results folder is kept in `results/runs/bench-replay-<name>`.
 pub fn replay(scenario: &Path, sim_secs: f64, out: Option<&Path>) -> Result<Figures> {
-    let loaded = super::load_for(scenario, sim_secs)?;
+    let loaded = crate::bench::load_for(scenario, sim_secs)?;
     let tmp = tempfile::tempdir().context("a temporary folder for the recording")?;
     let rec = tmp.path().join("run.mcap");
     let kept = Path::new("results/runs").join(format!("bench-replay-{}", loaded.file.name));
     let trace = MemoryTrace::default();
-    let start = super::wall_clock();
+    let start = crate::bench::wall_clock();
     let files = crate::exec::run_scenario(
         &loaded,
         &Job {
@@ -54,7 +54,7 @@ pub fn replay(scenario: &Path, sim_secs: f64, out: Option<&Path>) -> Result<Figu
     // The replay in a fresh process: `hetsim replay REC --memory-trace FILE`.
     let memory = tmp.path().join("replay-memory.csv");
     let exe = std::env::current_exe().context("this executable's path")?;
-    let start = super::wall_clock();
+    let start = crate::bench::wall_clock();
     let child = std::process::Command::new(exe)
         .arg("replay")
         .arg(&rec)
