@@ -33,7 +33,21 @@ fn every_scenario_and_robot_file_loads() {
     let sweeps = files_in("scenarios/sweeps");
     let mut kinds = Vec::new();
     for s in &sweeps {
-        let sweep = hetsim_eval::sweep::load_sweep(s).unwrap_or_else(|e| panic!("{e}"));
+        let text = std::fs::read_to_string(s).unwrap();
+        let sweep = match hetsim_eval::sweep::load_sweep(s) {
+            Ok(sweep) => sweep,
+            // A sweep over a recording needs the recording, which is made, not shipped (its
+            // header says how): without it, a clear refusal naming the field.
+            Err(e) if text.contains("\nrecording = ") => {
+                let e = e.to_string();
+                assert!(
+                    e.contains("field `recording`") && e.contains("--record FILE"),
+                    "{e}"
+                );
+                continue;
+            }
+            Err(e) => panic!("{e}"),
+        };
         kinds.push((sweep.file.name.clone(), sweep.file.kind));
     }
     use hetsim_eval::sweep::SweepKind::{Plan, Run};

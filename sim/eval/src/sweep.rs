@@ -305,8 +305,13 @@ pub fn load_sweep(path: &Path) -> Result<Sweep, SweepError> {
     let (base, base_text, recording) = match &file.recording {
         Some(rec) => {
             let at = path.parent().unwrap_or(Path::new(".")).join(rec);
-            let opened = hetsim_engine::replay::McapRecording::open(&at)
-                .map_err(|e| field("recording", format!("\"{rec}\""), &e.to_string()))?;
+            let opened = hetsim_engine::replay::McapRecording::open(&at).map_err(|e| {
+                field(
+                    "recording",
+                    format!("\"{rec}\""),
+                    &format!("a recording `hetsim run SCENARIO --record FILE` wrote ({e})"),
+                )
+            })?;
             let run = opened.run;
             // The recording's seed; its duration unless the sweep asks for less.
             file.first_seed = run.seed;
