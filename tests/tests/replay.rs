@@ -159,6 +159,21 @@ fn a_replayed_village_computes_the_live_runs_bytes_and_a_changed_parameter_chang
         e.contains("flip.mcap: at byte") && e.contains("the chunk"),
         "{e}"
     );
+    // A byte outside the chunks: the robot file the recording carries, Dala's 60 degree
+    // field of view made 40. Caught by the data section's CRC before anything is written.
+    let at = bytes
+        .windows(15)
+        .position(|w| w == b"hfov_deg = 60.0")
+        .expect("the recording carries dala's robot file");
+    let mut edited = bytes.clone();
+    edited[at + 11] = b'4';
+    let meta = tmp.path().join("meta.mcap");
+    std::fs::write(&meta, &edited).unwrap();
+    let e = refused(&["replay", &s(&meta), "--out", &s(&bad)], &bad);
+    assert!(
+        e.contains("meta.mcap: at byte 0: the data section's CRC"),
+        "{e}"
+    );
     let not_mcap = tmp.path().join("notes.mcap");
     std::fs::write(&not_mcap, b"hello").unwrap();
     let e = refused(&["replay", &s(&not_mcap), "--out", &s(&bad)], &bad);

@@ -336,9 +336,10 @@ fn a_json_recording_reads_back_with_the_expected_topics_and_counts() {
         }
         let _: serde_json::Value = serde_json::from_slice(&m.data).expect("every message is JSON");
     }
-    // 50 Hz truth for 10 s plus the initial pose; one /tf per truth message per robot.
-    assert_eq!(counts["/parent/truth"], 501);
-    assert_eq!(counts["/tf"], 4 * 501);
+    // Truth at every 10 ms tick for 10 s plus the initial pose (replay's radio needs the
+    // positions the live radio saw); one /tf per truth message per robot.
+    assert_eq!(counts["/parent/truth"], 1001);
+    assert_eq!(counts["/tf"], 4 * 1001);
     assert_eq!(counts["/parent/laser"], 100);
     assert_eq!(counts["/child1/compass"], 100);
     assert_eq!(

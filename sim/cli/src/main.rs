@@ -142,8 +142,9 @@ enum Cmd {
         /// Replay only the first SECS sim seconds.
         #[arg(long)]
         duration: Option<f64>,
-        /// Also write this process's resident memory at every sim second to FILE (CSV:
-        /// sim_s,rss_mib), and its peak as the last row (`peak`).
+        /// Also write this process's resident memory at each progress report (every sim
+        /// second, or every 1 % of a run shorter than 100 s) to FILE (CSV: sim_s,rss_mib),
+        /// and its peak as the last row (`peak`).
         #[arg(long)]
         memory_trace: Option<PathBuf>,
     },

@@ -98,6 +98,7 @@ pub fn replay(args: &ReplayArgs<'_>) -> Result<hetsim_eval::RunFiles> {
             width: k.width,
             height: k.height,
             intrinsics: [k.alpha_u, k.alpha_v, k.u0, k.v0],
+            baseline_m: bench.baseline_m,
             dt_ns: scenario.clock.dt_ns(),
         };
         let euroc = EurocRecording::open(&args.source, spec)?;
@@ -112,6 +113,13 @@ pub fn replay(args: &ReplayArgs<'_>) -> Result<hetsim_eval::RunFiles> {
         let duration = args
             .duration
             .map_or(run.duration_secs, |d| d.min(run.duration_secs));
+        if args.duration.is_some_and(|d| d > run.duration_secs) {
+            eprintln!(
+                "note: {} holds {} sim seconds; replaying those",
+                args.source.display(),
+                run.duration_secs
+            );
+        }
         let scenario = match &args.scenario {
             Some(path) => {
                 let text = std::fs::read_to_string(path)

@@ -12,8 +12,9 @@
 //! Every row of `data.csv` is checked and every image it lists must exist before replay
 //! starts; a bad row, a missing image, two images on one tick, a ground-truth row that is
 //! not a finite pose, or an image of another size is refused with the file and row.
-//! `T_BS` is not read: the bench's extrinsics are the robot file's, and a dataset whose
-//! cameras are not the rectified, parallel pair the robot file describes replays wrong. Real
+//! Of `T_BS`, only the two cameras' distance is checked against the bench's baseline; the
+//! bench's extrinsics are the robot file's, and a dataset whose cameras are not the
+//! rectified, parallel pair the robot file describes replays wrong. Real
 //! EuRoC sequences (752 x 480 with radial-tangential distortion) are refused until they are
 //! rectified. A dataset's ground truth becomes the robot's oracle where its robot file
 //! declares one (the pilot's truth), in the dataset's own world frame.
@@ -37,8 +38,39 @@ pub struct BenchSpec {
     pub height: u32,
     /// Pinhole intrinsics `[fu, fv, cu, cv]`.
     pub intrinsics: [f64; 4],
+    /// The stereo baseline, metres.
+    pub baseline_m: f64,
     /// The tick, nanoseconds.
     pub dt_ns: u64,
+}
+
+/// The translation of a camera's `T_BS` (its 4 x 4 `data: [...]`, over several lines), if the
+/// file has one.
+fn t_bs_translation(path: &Path, text: &str) -> Result<Option<[f64; 3]>, ReplayError> {
+    let Some(at) = text.find("T_BS:") else {
+        return Ok(None);
+    };
+    let block = &text[at..];
+    let list = block
+        .split_once('[')
+        .and_then(|(_, r)| r.split_once(']'))
+        .map(|(l, _)| l)
+        .ok_or_else(|| {
+            ReplayError::Mismatch(format!("{}: T_BS: a data: [...] list", path.display()))
+        })?;
+    let v: Vec<f64> = list
+        .split(',')
+        .map(|f| f.trim().parse::<f64>())
+        .collect::<Result<_, _>>()
+        .map_err(|_| ReplayError::Mismatch(format!("{}: T_BS: 16 numbers", path.display())))?;
+    if v.len() != 16 {
+        return Err(ReplayError::Mismatch(format!(
+            "{}: T_BS: 16 numbers, found {}",
+            path.display(),
+            v.len()
+        )));
+    }
+    Ok(Some([v[3], v[7], v[11]]))
 }
 
 enum Item {
@@ -196,6 +228,25 @@ impl EurocRecording {
         }
         for cam in ["cam0", "cam1"] {
             check_camera(&mav0.join(cam), &spec)?;
+        }
+        // The two cameras' distance (their T_BS translations) must be the bench's baseline:
+        // the VO's scale comes from it.
+        let t = |cam: &str| -> Result<Option<[f64; 3]>, ReplayError> {
+            let path = mav0.join(cam).join("sensor.yaml");
+            let text = std::fs::read_to_string(&path).map_err(|e| ReplayError::file(&path, e))?;
+            t_bs_translation(&path, &text)
+        };
+        if let (Some(a), Some(b)) = (t("cam0")?, t("cam1")?) {
+            let d = ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt();
+            if (d - spec.baseline_m).abs() > 1e-3 {
+                return Err(ReplayError::Mismatch(format!(
+                    "{}: cam0 and cam1 are {d:.4} m apart (their T_BS), but robot {}'s bench {} has a {} m baseline in its robot file; the VO's scale comes from it",
+                    mav0.display(),
+                    spec.robot,
+                    spec.bench,
+                    spec.baseline_m
+                )));
+            }
         }
         let (left, right) = (camera(&mav0.join("cam0"))?, camera(&mav0.join("cam1"))?);
         let shift = if left[0].1 > 86_400_000_000_000 {

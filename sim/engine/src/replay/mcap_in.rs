@@ -37,6 +37,11 @@ pub struct McapRecording {
     data_end: u64,
     /// The last message's log time: log times never decrease.
     last_log_ns: u64,
+    /// The data section's CRC as the data-end record states it (0: not computed), and the
+    /// CRC of every byte read so far: a flipped byte outside a chunk (the header, the
+    /// metadata, a schema or channel) is caught at the end of the data, before any output.
+    data_crc: u32,
+    crc: crc32fast::Hasher,
 }
 
 /// One framed record in a buffer: opcode, body, and the offset after it.
@@ -124,6 +129,7 @@ impl McapRecording {
         let mut at = magic_len;
         let mut metadata = BTreeMap::new();
         let mut data_end = None;
+        let mut data_crc = 0;
         let mut footer = false;
         while at < len {
             let (op, body) = header_at(&file, len, at).map_err(|w| bad(at, w))?;
@@ -137,7 +143,15 @@ impl McapRecording {
                     }
                 }
                 mcap::records::op::DATA_END => {
-                    data_end.get_or_insert(at);
+                    if data_end.is_none() {
+                        let bytes = body_at(&file, at, body).map_err(|w| bad(at, w))?;
+                        if let Record::DataEnd(d) =
+                            mcap::parse_record(op, &bytes).map_err(|e| bad(at, e.to_string()))?
+                        {
+                            data_crc = d.data_section_crc;
+                        }
+                        data_end = Some(at);
+                    }
                 }
                 mcap::records::op::FOOTER => {
                     let end = at + 9 + body;
@@ -187,6 +201,12 @@ impl McapRecording {
             messages: 0,
             data_end,
             last_log_ns: 0,
+            data_crc,
+            crc: {
+                let mut crc = crc32fast::Hasher::new();
+                crc.update(&magic);
+                crc
+            },
         })
     }
 
@@ -225,11 +245,30 @@ impl McapRecording {
                 continue;
             }
             if self.at >= self.data_end {
+                if self.at == self.data_end && self.data_crc != 0 {
+                    let crc = self.crc.clone().finalize();
+                    if crc != self.data_crc {
+                        return Err(self.corrupt(
+                            0,
+                            format!(
+                                "the data section's CRC is {crc:08x}, its data-end record says {:08x} (flipped bytes outside the chunks: the header, the metadata, a schema or channel?)",
+                                self.data_crc
+                            ),
+                        ));
+                    }
+                    // Checked once.
+                    self.at = self.data_end + 1;
+                }
                 return Ok(None);
             }
             let at = self.at;
             let (op, len) = header_at(&self.file, self.len, at).map_err(|w| self.corrupt(at, w))?;
             self.at = at + 9 + len;
+            // Every record's bytes go into the data section's CRC, read or skipped.
+            let body = body_at(&self.file, at, len).map_err(|w| self.corrupt(at, w))?;
+            self.crc.update(&[op]);
+            self.crc.update(&len.to_le_bytes());
+            self.crc.update(&body);
             if !matches!(
                 op,
                 mcap::records::op::CHUNK
@@ -239,7 +278,6 @@ impl McapRecording {
             ) {
                 continue;
             }
-            let body = body_at(&self.file, at, len).map_err(|w| self.corrupt(at, w))?;
             if op == mcap::records::op::CHUNK {
                 let record =
                     mcap::parse_record(op, &body).map_err(|e| self.corrupt(at, e.to_string()))?;
