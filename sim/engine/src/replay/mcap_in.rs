@@ -142,16 +142,14 @@ impl McapRecording {
                         metadata.insert(m.name, m.metadata);
                     }
                 }
-                mcap::records::op::DATA_END => {
-                    if data_end.is_none() {
-                        let bytes = body_at(&file, at, body).map_err(|w| bad(at, w))?;
-                        if let Record::DataEnd(d) =
-                            mcap::parse_record(op, &bytes).map_err(|e| bad(at, e.to_string()))?
-                        {
-                            data_crc = d.data_section_crc;
-                        }
-                        data_end = Some(at);
+                mcap::records::op::DATA_END if data_end.is_none() => {
+                    let bytes = body_at(&file, at, body).map_err(|w| bad(at, w))?;
+                    if let Record::DataEnd(d) =
+                        mcap::parse_record(op, &bytes).map_err(|e| bad(at, e.to_string()))?
+                    {
+                        data_crc = d.data_section_crc;
                     }
+                    data_end = Some(at);
                 }
                 mcap::records::op::FOOTER => {
                     let end = at + 9 + body;
