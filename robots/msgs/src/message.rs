@@ -297,10 +297,16 @@ impl PixelEncoding {
         }
     }
 
-    /// The grey level of an RGB pixel (BT.601), rounded: what a mono8 camera delivers.
+    /// The grey level of an RGB pixel (BT.601), rounded half away from zero: what a mono8
+    /// camera delivers. Called once per pixel of every grey frame: `f32::round` is a libm
+    /// call on baseline x86-64, so the rounding is done on the truncated integer instead
+    /// (exact: `y` lies in [0, 256), where `y - trunc(y)` has no rounding error).
+    #[inline]
     pub fn luminance(rgb: [u8; 3]) -> u8 {
         let y = 0.299 * rgb[0] as f32 + 0.587 * rgb[1] as f32 + 0.114 * rgb[2] as f32;
-        y.round().clamp(0.0, 255.0) as u8
+        let t = y as u32;
+        let r = if y - t as f32 >= 0.5 { t + 1 } else { t };
+        r.min(255) as u8
     }
 }
 
@@ -414,6 +420,23 @@ mod tests {
         assert!(!grid.is_free(-1, 0));
         assert!(grid.is_free(3, 2));
         assert!(!grid.is_free(4, 2));
+    }
+
+    #[test]
+    fn luminance_rounds_as_f32_round_for_every_rgb_triple() {
+        for r in 0..=255u8 {
+            for g in 0..=255u8 {
+                for b in 0..=255u8 {
+                    let y = 0.299 * r as f32 + 0.587 * g as f32 + 0.114 * b as f32;
+                    let reference = y.round().clamp(0.0, 255.0) as u8;
+                    assert_eq!(
+                        PixelEncoding::luminance([r, g, b]),
+                        reference,
+                        "{r} {g} {b}"
+                    );
+                }
+            }
+        }
     }
 
     #[test]
