@@ -153,6 +153,12 @@ fn tune(params: &mut hetsim_slam::stack::SlamParams, t: &hetsim_scene::SlamTunin
     if let Some(v) = t.match_gate_chi2 {
         params.match_gate_chi2 = v;
     }
+    if let Some(v) = t.edge_drift_translation {
+        params.edge_drift.translation = v;
+    }
+    if let Some(v) = t.edge_drift_rotation_deg_per_m {
+        params.edge_drift.rotation_deg_per_m = v;
+    }
 }
 
 fn build_pilot(scenario: &Scenario, robot: &ResolvedRobot) -> Box<dyn RobotStack> {

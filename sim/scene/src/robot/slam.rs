@@ -30,6 +30,13 @@ pub struct SlamTuning {
     /// prediction.
     #[serde(default)]
     pub match_gate_chi2: Option<f64>,
+    /// The drift of a sub-map's relative transform that VO's covariance does not hold, as a
+    /// fraction of the sub-map's length, on the body's x, y and z axes.
+    #[serde(default)]
+    pub edge_drift_translation: Option<[f64; 3]>,
+    /// The same drift on roll, pitch and yaw, degrees per metre.
+    #[serde(default)]
+    pub edge_drift_rotation_deg_per_m: Option<[f64; 3]>,
 }
 
 impl SlamTuning {
@@ -49,6 +56,19 @@ impl SlamTuning {
         }
         if let Some(v) = self.match_gate_chi2 {
             c.range(&["slam", "match_gate_chi2"], v, 0.01, 1e6)?;
+        }
+        for (field, values, hi) in [
+            ("edge_drift_translation", self.edge_drift_translation, 1.0),
+            (
+                "edge_drift_rotation_deg_per_m",
+                self.edge_drift_rotation_deg_per_m,
+                10.0,
+            ),
+        ] {
+            for (i, v) in values.iter().flatten().enumerate() {
+                let index = i.to_string();
+                c.range(&["slam", field, &index], *v, 0.0, hi)?;
+            }
         }
         Ok(())
     }
