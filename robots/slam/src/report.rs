@@ -50,7 +50,8 @@ pub struct EventLink {
 /// Frames: a robot's estimates are in the frame of some robot's first sub-map origin (its
 /// pose at its first stereo pair), never in the simulator's world, which robot software
 /// does not know. `vo` and `slam-open` are in the robot's own frame; the `slam` trajectory,
-/// the `map` and the origins in [`SlamReport::frame`]'s.
+/// the `map` and the origins in [`SlamReport::frame`]'s. [`SlamReport::own_origin_at_link`]
+/// places the robot's own frame in another robot's.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct SlamReport {
     /// The robot whose first origin is the frame of the `slam` trajectory, the `map` and the
@@ -69,4 +70,12 @@ pub struct SlamReport {
     /// metres.
     #[serde(default)]
     pub keyframes: Vec<(u64, f64)>,
+    /// The frame this robot was localized in by its first link to it (the team's, through
+    /// the rendezvous just after the start in the village), and its own first origin there
+    /// as the graph had it right after that link, before later events refined it; `None`
+    /// while the robot is in its own frame. The open-loop estimate and VO have no events, so
+    /// this is where they lie in the team's frame: as the seed's Fig. 7 draws them, all
+    /// three estimates start from the same link.
+    #[serde(default)]
+    pub own_origin_at_link: Option<(String, Pose)>,
 }

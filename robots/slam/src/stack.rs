@@ -138,6 +138,10 @@ pub struct SlamCore {
     match_rng: Lcg,
     /// Observations used, and rejected by the gate.
     pub updates: (u64, u64),
+    /// The robot whose first origin this robot's estimates moved into at the last change of
+    /// frame, and this robot's first origin in it as the graph had it right then (see
+    /// [`SlamReport::own_origin_at_link`]).
+    origin_at_link: Option<(String, Pose)>,
 }
 
 /// A small deterministic generator for RANSAC, seeded by the caller.
@@ -228,6 +232,7 @@ impl SlamCore {
             covariance: None,
             match_rng: Lcg(seed ^ 0x5bd1_e995_9e37_79b9),
             updates: (0, 0),
+            origin_at_link: None,
         }
     }
 
@@ -411,6 +416,20 @@ impl SlamCore {
             }
             Event::Msg(msg) => self.on_message(&msg),
         }
+        self.note_frame_change();
+    }
+
+    /// Keeps this robot's first origin in the frame its estimates have just moved into, as
+    /// the graph has it at that moment: the link that localized the robot in the team's
+    /// frame, before any later event refined it.
+    fn note_frame_change(&mut self) {
+        let Some(g) = self.global.as_ref() else {
+            return;
+        };
+        let noted = self.origin_at_link.as_ref().map(|(f, _)| f.as_str());
+        if g.frame() != noted.unwrap_or(&self.robot) {
+            self.origin_at_link = Some((g.frame().to_string(), g.origin(0)));
+        }
     }
 
     fn on_message(&mut self, msg: &SensorMsg) {
@@ -503,6 +522,7 @@ impl SlamCore {
         counters.insert("submaps".into(), g.len() as u64);
         Some(SlamReport {
             frame: g.frame().to_string(),
+            own_origin_at_link: self.origin_at_link.clone(),
             origins,
             covariances,
             events: self.events.clone(),

@@ -40,15 +40,21 @@ pub fn world_frames(output: &RunOutput) -> BTreeMap<String, Pose> {
 }
 
 /// The world pose of the frame that robot `robot`'s artifact `name` is in, for robots with a
-/// SLAM report (`vo` and `slam-open` in its own frame, anything else in the report's frame);
-/// `None` for artifacts of other stacks, which are in the world already.
+/// SLAM report; `None` for artifacts of other stacks, which are in the world already.
+///
+/// The `slam` estimate and the map are in the report's frame. `vo` and `slam-open` are in the
+/// robot's own frame, which its first link to another robot's frame placed there
+/// ([`SlamReport::own_origin_at_link`](hetsim_slam::report::SlamReport)): they go into the
+/// world through that link as the robot estimated it, so that in the team's frame the three
+/// estimates start from the same link and differ only by what later events did. A robot
+/// never linked is placed by its own true first pose.
 pub fn artifact_frame(output: &RunOutput, robot: &str, name: &str) -> Option<Pose> {
     let reports = raw_reports(output);
     let (_, report) = reports.iter().find(|(r, _)| r == robot)?;
     let frames = world_frames(output);
-    let frame = match name {
-        "vo" | "slam-open" => robot,
-        _ => report.frame.as_str(),
-    };
-    frames.get(frame).copied()
+    match (name, &report.own_origin_at_link) {
+        ("vo" | "slam-open", Some((frame, origin))) => frames.get(frame).map(|w| w * origin),
+        ("vo" | "slam-open", None) => frames.get(robot).copied(),
+        _ => frames.get(report.frame.as_str()).copied(),
+    }
 }

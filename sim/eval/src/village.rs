@@ -205,7 +205,9 @@ pub fn village_report(runs: &[PathBuf], out: &Path) -> Result<PathBuf, EvalError
         "\n## Accuracy\n\nATE after SE(3) alignment of the whole trajectory (as evo's \
          `evo_ape --align`), RPE over 1 s, and the error of the last pose without alignment. \
          `slam` is the cooperative estimate (events and the radio), `slam-open` the chain of \
-         sub-maps without events, `vo` the chained stereo VO.\n"
+         sub-maps without events, `vo` the chained stereo VO. Without alignment, all three \
+         are in Dala's frame: `slam-open` and `vo` where the robot's first link put its \
+         first origin.\n"
     );
     let _ = writeln!(
         md,
