@@ -8,6 +8,7 @@
 
 pub mod charts;
 pub mod coverage;
+pub mod drift;
 pub mod frames;
 pub mod localize;
 pub mod matching;

@@ -51,6 +51,9 @@ pub struct RobotSlam {
     pub events: Vec<EventMetrics>,
     /// The stack's counters.
     pub counters: BTreeMap<String, u64>,
+    /// Its open-loop chain's edges against the truth, per axis ([`crate::drift`]): the
+    /// drift the SLAM's `EdgeDrift` models.
+    pub edge_drift: crate::drift::EdgeDriftFit,
     /// Its image matching against the truth ([`crate::matching`]).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub matching: Option<crate::matching::MatchingMetrics>,
@@ -143,6 +146,13 @@ pub fn evaluate(
                 }
             }
         }
+        let open: BTreeMap<u64, Pose> = estimates
+            .iter()
+            .find(|e| e.kind == "slam-open" && e.robot == *robot)
+            .map(|e| e.poses.iter().copied().collect())
+            .unwrap_or_default();
+        let stamps: Vec<u64> = report.origins.iter().map(|(t, _, _)| *t).collect();
+        let edge_drift = crate::drift::EdgeDriftFit::fit(&stamps, &open, &truth);
         let events = report
             .events
             .iter()
@@ -170,6 +180,7 @@ pub fn evaluate(
                 submaps: report.origins.len(),
                 events,
                 counters: report.counters.clone(),
+                edge_drift,
                 matching: None,
             },
         );
