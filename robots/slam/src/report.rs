@@ -72,10 +72,16 @@ pub struct SlamReport {
     pub keyframes: Vec<(u64, f64)>,
     /// The frame this robot was localized in by its first link to it (the team's, through
     /// the rendezvous just after the start in the village), and its own first origin there
-    /// as the graph had it right after that link, before later events refined it; `None`
-    /// while the robot is in its own frame. The open-loop estimate and VO have no events, so
+    /// as the graph had it once optimized with that link (and whatever else had arrived
+    /// with it), before later events refined it; `None` while the robot is in its own
+    /// frame. The open-loop estimate and VO have no events, so
     /// this is where they lie in the team's frame: as the seed's Fig. 7 draws them, all
     /// three estimates start from the same link.
     #[serde(default)]
     pub own_origin_at_link: Option<(String, Pose)>,
+    /// The stamp of [`SlamReport::frame`]'s robot's first origin (where that robot's frame
+    /// begins), so that the frame can be placed even when that robot published no report
+    /// (a replay of this robot alone).
+    #[serde(default)]
+    pub frame_start_ns: Option<u64>,
 }

@@ -420,22 +420,23 @@ impl SlamCore {
     }
 
     /// Keeps this robot's first origin in the frame its estimates have just moved into, as
-    /// the graph has it at that moment: the link that localized the robot in the team's
-    /// frame, before any later event refined it.
+    /// the graph has it once optimized with the link that moved them: where that link put
+    /// the robot, before any later event refined it. A robot's frame changes once at most
+    /// (from its own to the component's gauge, the reference robot's where present:
+    /// [`Global::frame`]), so the first change is the one kept.
     fn note_frame_change(&mut self) {
-        let Some(g) = self.global.as_ref() else {
+        if self.origin_at_link.is_some() {
             return;
-        };
-        let noted = self.origin_at_link.as_ref().map(|(f, _)| f.as_str());
-        if g.frame() != noted.unwrap_or(&self.robot) {
+        }
+        if let Some(g) = self.global.as_ref().filter(|g| g.frame() != self.robot) {
             self.origin_at_link = Some((g.frame().to_string(), g.origin(0)));
         }
     }
 
     fn on_message(&mut self, msg: &SensorMsg) {
         match msg {
-            // The latest true pose until the first stereo pair anchors the estimate.
-            // Events need the first origin; open loop uses none.
+            // Events need the first origin (made at the first stereo pair); open loop uses
+            // none.
             _ if self.global.is_none() || !self.params.cooperative => {}
             SensorMsg::Rendezvous(r) => {
                 let period = self.params.rendezvous_period_s;
@@ -523,6 +524,13 @@ impl SlamCore {
         Some(SlamReport {
             frame: g.frame().to_string(),
             own_origin_at_link: self.origin_at_link.clone(),
+            frame_start_ns: if g.frame() == self.robot {
+                g.own.stamps.first().copied()
+            } else {
+                g.others
+                    .get(g.frame())
+                    .and_then(|s| s.stamps.first().copied())
+            },
             origins,
             covariances,
             events: self.events.clone(),

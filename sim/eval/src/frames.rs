@@ -28,15 +28,29 @@ pub(crate) fn raw_reports(output: &RunOutput) -> Vec<(String, SlamReport)> {
 /// expressed in the world through this; aligned figures (ATE with SE(3) alignment) do not
 /// depend on it.
 pub fn world_frames(output: &RunOutput) -> BTreeMap<String, Pose> {
-    raw_reports(output)
+    let at = |robot: &str, stamp: u64| -> Option<Pose> {
+        let truth = output.truth_of(robot)?;
+        let (_, pose) = truth.iter().min_by_key(|(t, _)| t.abs_diff(stamp))?;
+        Some(*pose)
+    };
+    let reports = raw_reports(output);
+    let mut frames: BTreeMap<String, Pose> = reports
         .iter()
         .filter_map(|(robot, report)| {
             let start = report.origins.first()?.0;
-            let truth = output.truth_of(robot)?;
-            let (_, pose) = truth.iter().min_by_key(|(t, _)| t.abs_diff(start))?;
-            Some((robot.clone(), *pose))
+            Some((robot.clone(), at(robot, start)?))
         })
-        .collect()
+        .collect();
+    // The frame of a robot that published no report (replayed without it) is placed through
+    // the stamp of its first origin that a linked robot's report names.
+    for (_, report) in &reports {
+        if let (false, Some(start)) = (frames.contains_key(&report.frame), report.frame_start_ns) {
+            if let Some(pose) = at(&report.frame, start) {
+                frames.insert(report.frame.clone(), pose);
+            }
+        }
+    }
+    frames
 }
 
 /// The world pose of the frame that robot `robot`'s artifact `name` is in, for robots with a

@@ -22,8 +22,9 @@ pub struct Accuracy {
     /// Absolute trajectory error after SE(3) alignment, RMSE, metres.
     pub ate_m: f64,
     /// The same without alignment, RMSE, metres: the estimate where its frame lies in the
-    /// world ([`crate::frames::world_frames`]: the team's frame, Dala's first origin, placed
-    /// by the truth; a robot still in its own frame, by its own first true pose).
+    /// world ([`crate::frames::artifact_frame`]: the team's frame, Dala's first origin, placed
+    /// by the truth; open loop and VO where the robot's first link put them in it; a robot
+    /// never linked, by its own first true pose).
     pub ate_unaligned_m: f64,
     /// Relative pose error of translation over 1 s, RMSE, metres.
     pub rpe_1s_m: f64,
@@ -118,7 +119,7 @@ pub struct Estimate {
 
 /// Every estimated trajectory of the run, in robot order and then in the order each stack
 /// published them, in the world frame (a SLAM stack's estimates are placed there by
-/// [`crate::frames::world_frames`]); trajectories of fewer than two poses are left out.
+/// [`crate::frames::artifact_frame`]); trajectories of fewer than two poses are left out.
 pub fn estimates(output: &RunOutput) -> Vec<Estimate> {
     let mut out = Vec::new();
     for (robot, artifacts) in &output.artifacts {

@@ -132,8 +132,8 @@ impl SlamParams {
 /// (`results/village/`):
 ///
 /// 1. Each open-loop sub-map edge against the truth: the error `Log(z⁻¹ T)` of the estimated
-///    relative transform `z` against the true one `T`, per axis, fitted by maximum
-///    likelihood to `N(0, (f d)²)` over the edges of both runs (Dala 63 edges of about 7 m,
+///    relative transform `z` against the true one `T`, per axis, fitted to
+///    `N(0, (f d)²)` by moments (`hetsim_eval::drift`) over the edges of both runs (Dala 63 edges of about 7 m,
 ///    Ressac 47 of about 75 m). Measured: Dala 0.28 / 0.13 / 0.12 % and 0.0123 / 0.0058 /
 ///    0.0173 °/m; Ressac 0.89 / 0.82 / 0.82 % and 0.0031 / 0.0096 / 0.0014 °/m. The previous
 ///    values (Ressac 3-4 % and 0.10-0.16 °/m, calibrated on the cooperative estimate's NEES

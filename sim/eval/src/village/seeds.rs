@@ -319,7 +319,7 @@ pub fn section(dirs: &[PathBuf]) -> Result<(String, Files), EvalError> {
     let _ = writeln!(
         md,
         "\nThe drift of the open-loop sub-map edges against the truth, fitted per axis over \
-         every edge of the {n} runs (`hetsim_eval::drift`; edges of {} m or more): the \
+         every edge of the {n} runs (`hetsim_eval::drift`, a moment fit; edges of {} m or more): the \
          random-walk part of what the SLAM's `EdgeDrift` models, set from the calibration \
          seeds (`robots/slam/src/stack/params.rs`).\n\n| robot | edges | x % | y % | z % | \
          roll °/m | pitch °/m | yaw °/m |\n|---|---|---|---|---|---|---|---|",
@@ -334,6 +334,10 @@ pub fn section(dirs: &[PathBuf]) -> Result<(String, Files), EvalError> {
             })
             .collect();
         let f = crate::drift::EdgeDriftFit::pool(&fits);
+        if f.edges == 0 {
+            let _ = writeln!(md, "| {robot} | 0 | - | - | - | - | - | - |");
+            continue;
+        }
         let _ = writeln!(
             md,
             "| {robot} | {} | {} | {} |",
