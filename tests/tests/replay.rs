@@ -151,6 +151,36 @@ fn a_replayed_village_computes_the_live_runs_bytes_and_a_changed_parameter_chang
         &bad,
     );
     assert!(e.contains("sigma_pix"), "{e}");
+    // The calibration's settings reach the SLAM (VO's covariance in the local map changes
+    // the open loop), and a drift out of range is refused naming its field and value. (The
+    // VO's own estimate does not change, but where the first link places it does.)
+    let scaled = tmp.path().join("scaled");
+    ok(&[
+        "replay",
+        &s(&rec),
+        "--set",
+        "robots.ressac.slam.vo_covariance_scale=10",
+        "--set",
+        "robots.ressac.slam.edge_drift_translation=[0.02,0.02,0.02]",
+        "--out",
+        &s(&scaled),
+    ]);
+    assert!(file(&live, "slam-open/ressac.tum") != file(&scaled, "slam-open/ressac.tum"));
+    let e = refused(
+        &[
+            "replay",
+            &s(&rec),
+            "--set",
+            "robots.ressac.slam.edge_drift_translation=[0.02,-1,0.02]",
+            "--out",
+            &s(&bad),
+        ],
+        &bad,
+    );
+    assert!(
+        e.contains("edge_drift_translation") && e.contains("-1"),
+        "{e}"
+    );
     // Another tick would feed the recorded messages at other ticks: refused.
     let e = refused(
         &[

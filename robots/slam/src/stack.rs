@@ -318,7 +318,8 @@ impl SlamCore {
                 // Lost: constant velocity, with ten times the uncertainty.
                 None => (self.last_motion.0, self.last_motion.1 * 10.0),
             };
-            self.map.predict(&d, &cov);
+            self.map
+                .predict(&d, &(cov * self.params.vo_covariance_scale));
             if let Some(v) = self.vo_pose.as_mut() {
                 *v *= d;
             }

@@ -153,6 +153,9 @@ fn tune(params: &mut hetsim_slam::stack::SlamParams, t: &hetsim_scene::SlamTunin
     if let Some(v) = t.match_gate_chi2 {
         params.match_gate_chi2 = v;
     }
+    if let Some(v) = t.vo_covariance_scale {
+        params.vo_covariance_scale = v;
+    }
     if let Some(v) = t.edge_drift_translation {
         params.edge_drift.translation = v;
     }

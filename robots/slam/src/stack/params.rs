@@ -16,6 +16,9 @@ pub struct SlamParams {
     pub per_region: usize,
     /// Pixel noise of an observation, pixels.
     pub sigma_px: f64,
+    /// VO's motion covariance is multiplied by this in the local map's prediction (1: as VO
+    /// reports it).
+    pub vo_covariance_scale: f64,
     /// A point whose 1σ search ellipse is wider than this is not searched, pixels.
     pub max_search_px: f64,
     /// Deletion: searched at least this often and found in fewer than half.
@@ -93,6 +96,7 @@ impl SlamParams {
             max_landmarks: 100,
             per_region: 2,
             sigma_px: 1.0,
+            vo_covariance_scale: 1.0,
             max_search_px: 10.0,
             min_searches: 6,
             reference_robot: None,

@@ -37,6 +37,9 @@ pub struct SlamTuning {
     /// The same drift on roll, pitch and yaw, degrees per metre.
     #[serde(default)]
     pub edge_drift_rotation_deg_per_m: Option<[f64; 3]>,
+    /// VO's motion covariance is multiplied by this in the local map's prediction.
+    #[serde(default)]
+    pub vo_covariance_scale: Option<f64>,
 }
 
 impl SlamTuning {
@@ -56,6 +59,9 @@ impl SlamTuning {
         }
         if let Some(v) = self.match_gate_chi2 {
             c.range(&["slam", "match_gate_chi2"], v, 0.01, 1e6)?;
+        }
+        if let Some(v) = self.vo_covariance_scale {
+            c.range(&["slam", "vo_covariance_scale"], v, 0.01, 1e6)?;
         }
         for (field, values, hi) in [
             ("edge_drift_translation", self.edge_drift_translation, 1.0),
