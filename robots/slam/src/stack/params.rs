@@ -140,7 +140,7 @@ impl SlamParams {
 ///    `N(0, (f d)²)` by moments (`hetsim_eval::drift`) over the edges of both runs (Dala 63 edges of about 7 m,
 ///    Ressac 47 of about 75 m). Measured: Dala 0.28 / 0.13 / 0.12 % and 0.0123 / 0.0058 /
 ///    0.0173 °/m; Ressac 0.89 / 0.82 / 0.82 % and 0.0031 / 0.0096 / 0.0014 °/m. The previous
-///    values (Ressac 3-4 % and 0.10-0.16 °/m, calibrated on the cooperative estimate's NEES
+///    values (Ressac 3.0-4.3 % and 0.10-0.16 °/m, calibrated on the cooperative estimate's NEES
 ///    with a VO that lost pairs in turns) were 3 to 80 times these: the graph then bent the
 ///    helicopter's chain by degrees of yaw to absorb a metre of position, and its cooperative
 ///    estimate was worse than its open loop.
