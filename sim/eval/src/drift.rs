@@ -55,17 +55,8 @@ impl EdgeDriftFit {
             if d < MIN_EDGE_M {
                 continue;
             }
-            let e = z.inverse() * (t0.inverse() * t1);
-            let r = e.rotation.scaled_axis();
-            let v = [
-                e.translation.x,
-                e.translation.y,
-                e.translation.z,
-                r.x,
-                r.y,
-                r.z,
-            ];
-            for (s, x) in fit.sum_e2.iter_mut().zip(v) {
+            let v = crate::slam::error(&z, &(t0.inverse() * t1));
+            for (s, x) in fit.sum_e2.iter_mut().zip(v.iter()) {
                 *s += x * x;
             }
             fit.sum_d2 += d * d;

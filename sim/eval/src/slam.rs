@@ -69,7 +69,7 @@ pub struct SlamMetrics {
 }
 
 /// The error `Log(T̂⁻¹ T)` in the graph's convention (translation, rotation vector).
-fn error(estimate: &Pose, truth: &Pose) -> Vector6<f64> {
+pub(crate) fn error(estimate: &Pose, truth: &Pose) -> Vector6<f64> {
     let e = estimate.inverse() * truth;
     let r = e.rotation.scaled_axis();
     Vector6::new(
