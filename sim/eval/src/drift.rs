@@ -15,8 +15,24 @@
 //! drift, is the error.
 
 use hetsim_msgs::Pose;
+use nalgebra::Vector6;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
+
+/// The error `Log(T̂⁻¹ T)` in the graph's convention (translation, rotation vector), as the
+/// drift fit and the SLAM evaluation's NEES take it.
+pub(crate) fn error(estimate: &Pose, truth: &Pose) -> Vector6<f64> {
+    let e = estimate.inverse() * truth;
+    let r = e.rotation.scaled_axis();
+    Vector6::new(
+        e.translation.x,
+        e.translation.y,
+        e.translation.z,
+        r.x,
+        r.y,
+        r.z,
+    )
+}
 
 /// Edges shorter than this are not fitted, metres.
 pub const MIN_EDGE_M: f64 = 1.0;
@@ -55,7 +71,7 @@ impl EdgeDriftFit {
             if d < MIN_EDGE_M {
                 continue;
             }
-            let v = crate::slam::error(&z, &(t0.inverse() * t1));
+            let v = error(&z, &(t0.inverse() * t1));
             for (s, x) in fit.sum_e2.iter_mut().zip(v.iter()) {
                 *s += x * x;
             }

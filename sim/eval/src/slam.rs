@@ -1,13 +1,14 @@
 //! The SLAM stacks' reports against ground truth: the NEES of the robot pose, what each event
 //! did to the robot's pose error, and the team's joint accuracy.
 
+use crate::drift::error;
 use crate::frames::{raw_reports, world_frames};
 use crate::trajectory::Estimate;
 use crate::trajectory::{evaluate_joint, Accuracy, Paired};
 use hetsim_engine::RunOutput;
 use hetsim_msgs::Pose;
 use hetsim_slam::report::SlamReport;
-use nalgebra::{Matrix6, Vector6};
+use nalgebra::Matrix6;
 use serde::Serialize;
 use std::collections::BTreeMap;
 
@@ -66,20 +67,6 @@ pub struct SlamMetrics {
     pub robots: BTreeMap<String, RobotSlam>,
     /// All robots together (one alignment), by estimate kind (`slam`, `slam-open`, `vo`).
     pub joint: BTreeMap<String, Accuracy>,
-}
-
-/// The error `Log(T̂⁻¹ T)` in the graph's convention (translation, rotation vector).
-pub(crate) fn error(estimate: &Pose, truth: &Pose) -> Vector6<f64> {
-    let e = estimate.inverse() * truth;
-    let r = e.rotation.scaled_axis();
-    Vector6::new(
-        e.translation.x,
-        e.translation.y,
-        e.translation.z,
-        r.x,
-        r.y,
-        r.z,
-    )
 }
 
 /// The SLAM reports the run's stacks published, by robot, in robot order, with their poses
