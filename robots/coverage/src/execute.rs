@@ -41,6 +41,7 @@ use crate::visibility::{in_view, Visibility};
 use crate::CoverageParams;
 use serde::Serialize;
 
+mod moves;
 mod stage;
 
 /// Which part of the mission a timestep belongs to.
@@ -75,15 +76,21 @@ pub struct Plan {
     pub parent_vertices: Vec<Vertex>,
     /// C(t) as imaged, per stage.
     pub child_sets: Vec<Vec<Vertex>>,
-    /// Vertices of V \ V_p that no parent vertex has in its LOS_free: no parent placement
-    /// lets a child image them.
+    /// Vertices of V \ V_p that no vertex the parent can reach has in its LOS_free: no
+    /// parent placement lets a child image them.
     pub uncoverable: Vec<Vertex>,
     /// Vertices some parent vertex does see freely, but that were not imaged because the
     /// team could not get there (see `skipped_stages`).
     pub unreached: Vec<Vertex>,
     /// Stages (indices into `parent_vertices`) skipped because the team could not be moved
-    /// there without two robots passing each other in a one-vertex-wide passage.
+    /// there (none is expected: the moves of [`moves`] let robots by each other; a skip
+    /// would be a bug, and the sweeps report it).
     pub skipped_stages: Vec<usize>,
+    /// Vertices imaged after the tour, with the parent on a vertex (not necessarily a
+    /// parent vertex) that has them in its LOS_free: those the stages could not get a child
+    /// onto with the parent on the stage's own parent vertex (a dead end the parent's vertex
+    /// closes, a view the team could not clear).
+    pub revisited: Vec<Vertex>,
     /// Positions at the start: the parent, then the children.
     pub start: Vec<Vertex>,
     /// The schedule.
@@ -102,7 +109,24 @@ impl Plan {
     /// Images grabbed over V \ V_p.
     pub fn coverage(&self) -> f64 {
         let target = self.vertices - self.parent_vertices.len();
-        let imaged: usize = self.child_sets.iter().map(Vec::len).sum();
+        let imaged: usize =
+            self.child_sets.iter().map(Vec::len).sum::<usize>() + self.revisited.len();
+        if target == 0 {
+            1.0
+        } else {
+            imaged as f64 / target as f64
+        }
+    }
+}
+
+impl Plan {
+    /// Images grabbed over the vertices of V \ V_p that some vertex sees freely: Eq. 4
+    /// promises 1 where every vertex is seen freely by some vertex, and the team's moves
+    /// keep that promise on every vertex that is.
+    pub fn coverable_coverage(&self) -> f64 {
+        let target = self.vertices - self.parent_vertices.len() - self.uncoverable.len();
+        let imaged: usize =
+            self.child_sets.iter().map(Vec::len).sum::<usize>() + self.revisited.len();
         if target == 0 {
             1.0
         } else {
@@ -141,6 +165,8 @@ struct Run<'a> {
     imaged: Vec<bool>,
     robot_steps: usize,
     stage: usize,
+    /// Nesting of the parent's back-offs ([`moves`]).
+    backing_off: usize,
 }
 
 impl Run<'_> {
@@ -305,23 +331,27 @@ impl Run<'_> {
             }
         }
         if following {
-            // Children step off the parent's path, then follow it after the parent.
+            // Children step off the parent's path where they can (those that cannot are
+            // moved ahead of the parent as it drives), then follow it after the parent.
             for j in 1..=n {
                 if on_path[self.pos[j]] && self.pos[j] != from {
-                    self.walk_alone(j, Phase::Coordination, |v| !on_path[v], |_| true)?;
+                    let _ = self.walk_alone(j, Phase::Coordination, |v| !on_path[v], |_| true);
                 }
             }
         }
-        // The parent drives (re-planning around children if one still blocks its path).
-        self.walk_alone(0, Phase::Coordination, |v| v == to, |_| true)?;
+        // The parent drives, moving children out of its way and backing off to let a
+        // pocket of children out where it must.
+        self.drive_parent(to, Phase::Coordination, &|_| false)?;
         if following {
             let mut around = vec![false; self.map.len()];
             for &v in &self.vis.los[to] {
                 around[v] = true;
             }
+            // A child that cannot get into LOS(to) (the parent's vertex cuts it off) stays
+            // where it is; the stage's roadmaps start from wherever the children stand.
             for j in self.nearest_first(|v| around[v]) {
                 if !around[self.pos[j]] {
-                    self.walk_alone(j, Phase::Coordination, |v| around[v], |_| true)?;
+                    let _ = self.walk_alone(j, Phase::Coordination, |v| around[v], |_| true);
                 }
             }
         }
@@ -395,6 +425,7 @@ pub fn plan_with(
         imaged: vec![false; map.len()],
         robot_steps: 0,
         stage: 0,
+        backing_off: 0,
     };
     let mut child_sets = Vec::new();
     let mut following_behaviours = 0;
@@ -419,12 +450,43 @@ pub fn plan_with(
             .collect();
         child_sets.push(run.map_stage(&set)?);
     }
+    // Seen freely from a vertex the parent can get to (a free-space component of its own
+    // is no parent placement's to see).
+    let reachable = map.distances(parent_start, |_| true);
     let mut seen = vec![false; map.len()];
     for v in map.vertices() {
+        if reachable[v] == usize::MAX {
+            continue;
+        }
         for &w in &vis.los_free[v] {
             seen[w] = true;
         }
     }
+    // What the stages left: one vertex at a time, nearest to the parent first, from
+    // whichever vertex that sees it freely a child can get there.
+    run.stage = order.len();
+    let mut revisited = Vec::new();
+    loop {
+        let from_parent = map.distances(run.pos[0], |_| true);
+        let Some(c) = map
+            .vertices()
+            .into_iter()
+            .filter(|&v| seen[v] && !is_parent[v] && !run.imaged[v] && !revisited.contains(&v))
+            .filter(|&v| from_parent[v] != usize::MAX)
+            .min_by_key(|&v| (from_parent[v], v))
+        else {
+            break;
+        };
+        if let Some(j) = run.revisit(c)? {
+            run.imaged[c] = true;
+            if let Some(last) = run.frames.last_mut() {
+                last.grabs.push((j, c));
+            }
+        }
+        // Tried once either way.
+        revisited.push(c);
+    }
+    revisited.retain(|&v| run.imaged[v]);
     let (unreached, uncoverable): (Vec<Vertex>, Vec<Vertex>) = map
         .vertices()
         .into_iter()
@@ -443,6 +505,7 @@ pub fn plan_with(
         uncoverable,
         unreached,
         skipped_stages,
+        revisited,
         start,
         mapping_timesteps,
         coordination_timesteps,

@@ -113,7 +113,13 @@ fn check(map: &Map, params: &CoverageParams, plan: &Plan) -> Result<(), String> 
             expected.len()
         ));
     }
-    let mut from_sets: Vec<Vertex> = plan.child_sets.iter().flatten().copied().collect();
+    let mut from_sets: Vec<Vertex> = plan
+        .child_sets
+        .iter()
+        .flatten()
+        .chain(&plan.revisited)
+        .copied()
+        .collect();
     from_sets.sort_unstable();
     if from_sets != got {
         return Err("the child sets C(t) do not match the grabs".to_string());

@@ -22,6 +22,14 @@ pub struct CoverageMetrics {
     pub total_timesteps: usize,
     /// Imaged fraction of V \ V_p.
     pub coverage: f64,
+    /// Imaged fraction of the vertices some vertex sees freely (V \ V_p without the
+    /// uncoverable ones): 1 unless the team failed to get somewhere it could have imaged
+    /// (Eq. 4's promise where its assumption holds).
+    pub coverable_coverage: f64,
+    /// Stages the team could not be moved to (0 expected).
+    pub skipped_stages: usize,
+    /// Vertices imaged after the tour from another vertex that sees them freely.
+    pub revisited: usize,
     /// Vertices no parent vertex sees freely.
     pub uncoverable: usize,
     /// Visible vertices the team could not reach.
@@ -41,6 +49,9 @@ impl CoverageMetrics {
             coordination_timesteps: plan.coordination_timesteps,
             total_timesteps: plan.mapping_timesteps + plan.coordination_timesteps,
             coverage: plan.coverage(),
+            coverable_coverage: plan.coverable_coverage(),
+            skipped_stages: plan.skipped_stages.len(),
+            revisited: plan.revisited.len(),
             uncoverable: plan.uncoverable.len(),
             unreached: plan.unreached.len(),
             robot_steps: plan.robot_steps,
@@ -53,6 +64,15 @@ impl CoverageMetrics {
 /// children on their robots' vertices when the scenario places exactly N of them, else next
 /// to the parent.
 pub fn plan_scenario(scenario: &Scenario) -> Result<(Map, CoverageParams, Plan), EvalError> {
+    plan_scenario_with(scenario, None)
+}
+
+/// [`plan_scenario`] with `children` children instead of the scenario's number (they then
+/// start next to the parent unless the scenario places exactly that many).
+pub fn plan_scenario_with(
+    scenario: &Scenario,
+    children: Option<usize>,
+) -> Result<(Map, CoverageParams, Plan), EvalError> {
     let grid = &scenario
         .world
         .grid
@@ -60,7 +80,10 @@ pub fn plan_scenario(scenario: &Scenario) -> Result<(Map, CoverageParams, Plan),
         .ok_or_else(|| EvalError::Plan("needs an indoor_grid world".into()))?
         .grid;
     let map = Map::from_grid(grid);
-    let params = hetsim_stacks::coverage_params(scenario);
+    let mut params = hetsim_stacks::coverage_params(scenario);
+    if let Some(n) = children {
+        params.children = n;
+    }
     let vertex_of =
         |x: f64, y: f64| -> Option<Vertex> { grid.cell_of(x, y).map(|(c, r)| r * grid.cols + c) };
     let parent = scenario

@@ -205,7 +205,7 @@ pub struct Sweep {
 }
 
 /// Metric columns of a planning sweep's `runs.csv`, in order.
-pub const METRICS: [&str; 10] = [
+pub const METRICS: [&str; 13] = [
     "vertices",
     "parent_vertices",
     "following",
@@ -216,6 +216,9 @@ pub const METRICS: [&str; 10] = [
     "uncoverable",
     "unreached",
     "robot_steps",
+    "coverable_coverage",
+    "skipped_stages",
+    "revisited",
 ];
 
 fn metric_values(m: &CoverageMetrics) -> Vec<f64> {
@@ -230,6 +233,9 @@ fn metric_values(m: &CoverageMetrics) -> Vec<f64> {
         m.uncoverable as f64,
         m.unreached as f64,
         m.robot_steps as f64,
+        m.coverable_coverage,
+        m.skipped_stages as f64,
+        m.revisited as f64,
     ]
 }
 

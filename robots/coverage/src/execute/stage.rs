@@ -147,50 +147,72 @@ impl Run<'_> {
     /// Brings the nearest child to `c`, clears its view, and returns the child's index if it
     /// can grab there.
     pub(super) fn mop_up(&mut self, parent: Vertex, c: Vertex) -> Result<Option<usize>, PlanError> {
-        let n = self.pos.len() - 1;
-        if self.occupied_by_other(usize::MAX, c) && self.pos[0] == c {
+        if self.pos[0] == c {
             return Ok(None);
         }
-        let chosen = (1..=n)
-            .filter_map(|r| {
-                self.map
-                    .path_to(
-                        self.pos[r],
-                        |v| v == c,
-                        |v| v != parent && !self.occupied_by_other(r, v),
-                    )
-                    .map(|p| (p.len(), r))
-            })
-            .min();
-        let Some((_, robot)) = chosen else {
+        // The parent stands on the stage's parent vertex again if an earlier grab moved it.
+        if self.pos[0] != parent
+            && self
+                .drive_parent(parent, Phase::Mapping, &|_| false)
+                .is_err()
+        {
             return Ok(None);
+        }
+        // Whichever child is nearest; the parent lets it through if its vertex cuts c off,
+        // or, where it could not come back without crossing c, watches from another vertex
+        // that has c in its LOS_free.
+        let robot = match self.bring_child(Phase::Mapping, &|v| v == c, &|_| true)? {
+            Some(robot) => robot,
+            None => match self.bring_child_from_stand(Phase::Mapping, c)? {
+                Some(robot) => robot,
+                None => return Ok(None),
+            },
         };
-        self.walk_alone(robot, Phase::Mapping, |v| v == c, |v| v != parent)?;
-        for other in 1..=n {
-            if other != robot
-                && in_view(
-                    self.map,
-                    self.params,
-                    c,
-                    self.pos[other],
-                    self.params.child_radius_m,
-                )
-            {
-                let (map, params) = (self.map, self.params);
-                if self
-                    .walk_alone(
-                        other,
-                        Phase::Mapping,
-                        |v| !in_view(map, params, c, v, params.child_radius_m) && v != c,
-                        |v| v != parent,
-                    )
+        if !self.clear_view(robot, c) {
+            return Ok(None);
+        }
+        if self.frames.last().is_none_or(|f| f.positions != self.pos) {
+            self.push(Phase::Mapping, Vec::new());
+        }
+        Ok(Some(robot - 1))
+    }
+
+    /// Everyone else leaves the view of child `robot` on `c`; whether its view is clear.
+    fn clear_view(&mut self, robot: usize, c: Vertex) -> bool {
+        let n = self.pos.len() - 1;
+        let watcher = self.pos[0];
+        // Robots in its view step out of it (a step aside can bring another one in, so
+        // this is repeated until the view is clear or nobody can move).
+        let (map, params) = (self.map, self.params);
+        let out_of_view = |v: Vertex| !in_view(map, params, c, v, params.child_radius_m) && v != c;
+        for _ in 0..8 * n {
+            let Some(other) = (1..=n).find(|&k| {
+                k != robot && in_view(map, params, c, self.pos[k], params.child_radius_m)
+            }) else {
+                break;
+            };
+            let pinned = |v: Vertex| v == c || v == watcher;
+            if !self.make_way(self.pos[other], Phase::Mapping, &pinned, &out_of_view)
+                && self
+                    .walk_alone(other, Phase::Mapping, out_of_view, |v| {
+                        v != watcher && v != c
+                    })
                     .is_err()
-                {
-                    return Ok(None);
-                }
+            {
+                return false;
             }
         }
-        if self.view_blocked(robot, c) {
+        !self.view_blocked(robot, c)
+    }
+
+    /// Images `c` after the tour ([`Plan::revisited`]): the parent drives to a vertex that
+    /// sees `c` freely, a child is brought there and the view is cleared. The child, if it
+    /// grabbed.
+    pub(super) fn revisit(&mut self, c: Vertex) -> Result<Option<usize>, PlanError> {
+        let Some(robot) = self.bring_child_from_stand(Phase::Mapping, c)? else {
+            return Ok(None);
+        };
+        if !self.clear_view(robot, c) {
             return Ok(None);
         }
         if self.frames.last().is_none_or(|f| f.positions != self.pos) {

@@ -180,13 +180,13 @@ fn plan_markdown(sweep: &Sweep, stats: &[SummaryCell], finished: usize) -> Strin
         "coverage",
     ];
     md.push_str(&format!(
-        "| {} | runs | {} |\n",
+        "| {} | runs | {} | least coverage | least coverable coverage | skipped stages |\n",
         axes.join(" | "),
         shown.join(" | ")
     ));
     md.push_str(&format!(
         "|{}\n",
-        "---|".repeat(axes.len() + 1 + shown.len())
+        "---|".repeat(axes.len() + 4 + shown.len())
     ));
     for cell in stats {
         let shown_cells: Vec<String> = shown
@@ -200,13 +200,29 @@ fn plan_markdown(sweep: &Sweep, stats: &[SummaryCell], finished: usize) -> Strin
                 }
             })
             .collect();
+        let least = |m: &str| {
+            cell.stat(m)
+                .samples
+                .iter()
+                .copied()
+                .fold(f64::INFINITY, f64::min)
+        };
+        let skipped: f64 = cell.stat("skipped_stages").samples.iter().sum();
         md.push_str(&format!(
-            "| {} | {} | {} |\n",
+            "| {} | {} | {} | {:.4} | {:.4} | {} |\n",
             cell.values.join(" | "),
             cell.runs,
-            shown_cells.join(" | ")
+            shown_cells.join(" | "),
+            least("coverage"),
+            least("coverable_coverage"),
+            skipped
         ));
     }
+    md.push_str(
+        "\nLeast coverage: the run of the cell with the smallest imaged fraction of V \\ V_p; \
+         least coverable coverage: the same over the vertices some vertex sees freely (Eq. 4's \
+         promise, 1 wherever the team got everywhere it could image).\n",
+    );
     md
 }
 

@@ -1,0 +1,500 @@
+//! Moving robots past each other on a grid where two robots never share or swap a vertex.
+//!
+//! The children are interchangeable for the mission (any child can image any vertex, and
+//! any child can stand in a following position), so a child in the way is never a reason
+//! to fail: the robots between a vertex and the nearest empty one shift one step each along
+//! the path between them (unlabelled pebble motion), which empties the vertex in as many
+//! single steps as there are robots on that path. The parent is the one robot that must
+//! itself get somewhere. It can be blocked only by a pocket: the part of the map beyond its
+//! next step, cut off by the parent's own vertex, in which every vertex holds a child. Then
+//! the parent yields: it backs off to the nearest vertex from which the pocket's children
+//! can leave past it, they leave, and it goes on. A child that must get behind the parent
+//! (to image a vertex the parent's vertex cuts off) is let through the same way.
+
+use super::*;
+
+/// How many times [`Run::drive_parent`] may back off before it gives up (each back-off
+/// empties a pocket of at most N children, so a handful is plenty; the bound only keeps a
+/// bug from looping forever).
+const MAX_BACK_OFFS: usize = 32;
+
+impl Run<'_> {
+    /// The child standing on `v`, if any.
+    pub(super) fn child_at(&self, v: Vertex) -> Option<usize> {
+        (1..self.pos.len()).find(|&k| self.pos[k] == v)
+    }
+
+    /// Empties vertex `v` by shifting the children on a shortest path from `v` to the nearest
+    /// vertex with no robot, one step each, starting with the one nearest that vertex. The
+    /// path avoids the parent and every vertex in `keep` (robots there do not move); holes
+    /// where `hole_ok` is false are passed over. Returns whether `v` is now empty.
+    pub(super) fn make_way(
+        &mut self,
+        v: Vertex,
+        phase: Phase,
+        keep: &dyn Fn(Vertex) -> bool,
+        hole_ok: &dyn Fn(Vertex) -> bool,
+    ) -> bool {
+        if self.child_at(v).is_none() {
+            return self.pos[0] != v;
+        }
+        let parent = self.pos[0];
+        let Some(path) = self.map.path_to(
+            v,
+            |u| hole_ok(u) && !self.occupied_by_other(usize::MAX, u),
+            |u| u != parent && !keep(u),
+        ) else {
+            return false;
+        };
+        for k in (0..path.len() - 1).rev() {
+            if let Some(j) = self.child_at(path[k]) {
+                self.pos[j] = path[k + 1];
+                self.robot_steps += 1;
+                self.push(phase, Vec::new());
+            }
+        }
+        true
+    }
+
+    /// Drives the parent to `to` along shortest paths, moving children out of its way
+    /// ([`Self::make_way`]); children on vertices where `keep` holds are never moved and never
+    /// passed. When the vertex ahead lies in a pocket full of children, the parent backs off
+    /// and lets them out first.
+    pub(super) fn drive_parent(
+        &mut self,
+        to: Vertex,
+        phase: Phase,
+        keep: &dyn Fn(Vertex) -> bool,
+    ) -> Result<(), PlanError> {
+        let stuck = PlanError::Stuck {
+            stage: self.stage,
+            robot: 0,
+            target: Some(to),
+        };
+        // Vertices a back-off emptied: holes there are not refilled until the parent is in.
+        let mut emptied = vec![false; self.map.len()];
+        let mut back_offs = 0;
+        while self.pos[0] != to {
+            let here = self.pos[0];
+            let path = self
+                .map
+                .path_to(here, |u| u == to, |u| !keep(u) || u == to)
+                .ok_or(stuck.clone())?;
+            if keep(to) && self.child_at(to).is_some() {
+                return Err(stuck);
+            }
+            let next = path[1];
+            if emptied[next] {
+                emptied.iter_mut().for_each(|e| *e = false);
+            }
+            if self.child_at(next).is_some() {
+                let mut rest = vec![false; self.map.len()];
+                for &u in &path[1..] {
+                    rest[u] = true;
+                }
+                let emptied_now = &emptied;
+                // Prefer holes off the rest of the path (the children are then not met again).
+                let cleared = self.make_way(next, phase, keep, &|u| !rest[u] && !emptied_now[u])
+                    || self.make_way(next, phase, keep, &|u| !emptied_now[u]);
+                if !cleared {
+                    back_offs += 1;
+                    if back_offs > MAX_BACK_OFFS {
+                        return Err(stuck);
+                    }
+                    let pocket = self.back_off(next, phase, keep)?;
+                    for u in pocket {
+                        emptied[u] = true;
+                    }
+                    continue;
+                }
+            }
+            self.pos[0] = next;
+            self.robot_steps += 1;
+            self.push(phase, Vec::new());
+        }
+        Ok(())
+    }
+
+    /// The pocket beyond `next` (the vertices reachable from `next` without passing the
+    /// parent or a kept vertex) holds no empty vertex. The parent backs off to the nearest
+    /// vertex outside it from which the pocket's children can reach enough empty vertices,
+    /// and they leave. Returns the pocket.
+    fn back_off(
+        &mut self,
+        next: Vertex,
+        phase: Phase,
+        keep: &dyn Fn(Vertex) -> bool,
+    ) -> Result<Vec<Vertex>, PlanError> {
+        let here = self.pos[0];
+        let stuck = PlanError::Stuck {
+            stage: self.stage,
+            robot: 0,
+            target: Some(next),
+        };
+        // A back-off drives the parent, which may itself back off once more, never deeper.
+        if self.backing_off >= 2 {
+            return Err(stuck);
+        }
+        self.backing_off += 1;
+        let result = self.back_off_from(here, next, phase, keep, stuck);
+        self.backing_off -= 1;
+        result
+    }
+
+    fn back_off_from(
+        &mut self,
+        here: Vertex,
+        next: Vertex,
+        phase: Phase,
+        keep: &dyn Fn(Vertex) -> bool,
+        stuck: PlanError,
+    ) -> Result<Vec<Vertex>, PlanError> {
+        let reach = self.map.distances(next, |u| u != here && !keep(u));
+        let pocket: Vec<Vertex> = (0..self.map.len())
+            .filter(|&u| reach[u] != usize::MAX)
+            .collect();
+        let mut in_pocket = vec![false; self.map.len()];
+        for &u in &pocket {
+            in_pocket[u] = true;
+        }
+        let leaving = pocket
+            .iter()
+            .filter(|&&u| self.child_at(u).is_some())
+            .count();
+        // Candidate stands, nearest first, outside the pocket.
+        let from_here = self.map.distances(here, |u| !in_pocket[u] && !keep(u));
+        let mut stands: Vec<Vertex> = (0..self.map.len())
+            .filter(|&u| from_here[u] != usize::MAX && u != here)
+            .collect();
+        stands.sort_by_key(|&u| (from_here[u], u));
+        let stand = stands
+            .into_iter()
+            .find(|&w| {
+                // Empty vertices outside the pocket the children can reach past `w`.
+                let out = self.map.distances(here, |u| u != w && !keep(u));
+                let holes = (0..self.map.len())
+                    .filter(|&u| {
+                        out[u] != usize::MAX
+                            && !in_pocket[u]
+                            && u != w
+                            && u != here
+                            && !self.occupied_by_other(usize::MAX, u)
+                    })
+                    .count();
+                // `here` itself becomes free too once the parent stands on `w`.
+                holes + 1 >= leaving
+            })
+            .ok_or(stuck.clone())?;
+        // Back off without entering the pocket.
+        let keep_out = |u: Vertex| keep(u) || in_pocket[u];
+        self.drive_parent(stand, phase, &keep_out)?;
+        // The pocket's children leave, nearest to the exit first.
+        for _ in 0..leaving {
+            let Some(&inside) = pocket
+                .iter()
+                .filter(|&&u| self.child_at(u).is_some())
+                .min_by_key(|&&u| (reach[u], u))
+            else {
+                break;
+            };
+            let stand = self.pos[0];
+            let exit = self.map.path_to(
+                inside,
+                |u| !in_pocket[u] && u != stand && !self.occupied_by_other(usize::MAX, u),
+                |u| u != stand && !keep(u),
+            );
+            let Some(exit) = exit else {
+                return Err(stuck);
+            };
+            let j = self.child_at(inside).expect("a child stands there");
+            // Children outside the pocket on the way step aside first.
+            let pinned = |x: Vertex| keep(x) || in_pocket[x] || x == inside;
+            let on_exit = |x: Vertex| exit.contains(&x);
+            for _ in 0..exit.len() * self.pos.len() {
+                let Some(&u) = exit[1..].iter().find(|&&u| self.child_at(u).is_some()) else {
+                    break;
+                };
+                if !self.make_way(u, phase, &pinned, &|x| !on_exit(x)) {
+                    return Err(stuck);
+                }
+            }
+            if exit[1..].iter().any(|&u| self.occupied_by_other(j, u)) {
+                return Err(stuck);
+            }
+            for &u in &exit[1..] {
+                self.pos[j] = u;
+                self.robot_steps += 1;
+                self.push(phase, Vec::new());
+            }
+        }
+        Ok(pocket)
+    }
+
+    /// Brings some child (whichever is nearest) onto a vertex satisfying `goal`, through
+    /// vertices satisfying `within`, and returns it; `None` if no child can get there. A
+    /// child cut off by the parent's vertex is let through: the parent steps aside and
+    /// comes back (while mapping it must stand on its parent vertex again to track the
+    /// child).
+    pub(super) fn bring_child(
+        &mut self,
+        phase: Phase,
+        goal: &dyn Fn(Vertex) -> bool,
+        within: &dyn Fn(Vertex) -> bool,
+    ) -> Result<Option<usize>, PlanError> {
+        if let Some(j) = self.nearest_child_to(goal, within, self.pos[0]) {
+            let at = self.walk_child(j, goal, within, phase);
+            return Ok(goal(at).then_some(j));
+        }
+        // Nobody gets there past the parent: it steps to a stand that lets one through and
+        // from which it can come back without crossing the goal. Driving there can push the
+        // children it meant to let through (a corridor's children go ahead of the parent),
+        // so the choice is made again from where it got to, a few times.
+        let home = self.pos[0];
+        for _round in 0..4 {
+            let here = self.pos[0];
+            let from_here = self.map.distances(here, |_| true);
+            let mut stands: Vec<Vertex> = (0..self.map.len())
+                .filter(|&u| from_here[u] != usize::MAX && u != here && !goal(u))
+                .collect();
+            stands.sort_by_key(|&u| (from_here[u], u));
+            let stand = stands.into_iter().take(256).find(|&w| {
+                self.nearest_child_to(goal, within, w).is_some()
+                    && self.map.path_to(w, |u| u == home, |u| !goal(u)).is_some()
+            });
+            let Some(w) = stand else { break };
+            if self.drive_parent(w, phase, &|_| false).is_err() {
+                break;
+            }
+            if let Some(j) = self.nearest_child_to(goal, within, w) {
+                let at = self.walk_child(j, goal, within, phase);
+                let pinned = move |u: Vertex| u == at;
+                self.drive_parent(home, phase, &pinned)?;
+                return Ok(goal(at).then_some(j));
+            }
+        }
+        if self.pos[0] != home {
+            self.drive_parent(home, phase, &|_| false)?;
+        }
+        Ok(None)
+    }
+
+    /// The child with the shortest path to a `goal` vertex through `within` vertices if the
+    /// parent stood on `parent_at` (other children on the way are not obstacles: the one
+    /// nearest the goal along the way is the one chosen, and its path is free).
+    fn nearest_child_to(
+        &self,
+        goal: &dyn Fn(Vertex) -> bool,
+        within: &dyn Fn(Vertex) -> bool,
+        parent_at: Vertex,
+    ) -> Option<usize> {
+        // Breadth-first from the goal vertices back to the first child met.
+        let starts: Vec<Vertex> = (0..self.map.len())
+            .filter(|&v| self.map.is_free(v) && goal(v) && v != parent_at)
+            .collect();
+        if let Some(j) = starts.iter().find_map(|&v| self.child_at(v)) {
+            return Some(j);
+        }
+        let mut seen = vec![false; self.map.len()];
+        for &v in &starts {
+            seen[v] = true;
+        }
+        let mut queue: std::collections::VecDeque<Vertex> = starts.into();
+        while let Some(v) = queue.pop_front() {
+            for n in self.map.neighbours(v) {
+                if seen[n] || n == parent_at {
+                    continue;
+                }
+                if let Some(j) = self.child_at(n) {
+                    return Some(j);
+                }
+                seen[n] = true;
+                if within(n) {
+                    queue.push_back(n);
+                }
+            }
+        }
+        None
+    }
+
+    /// Walks child `j` along a shortest free path to a `goal` vertex (one exists: see
+    /// [`Self::nearest_child_to`]); returns where it stopped.
+    fn walk_child(
+        &mut self,
+        j: usize,
+        goal: &dyn Fn(Vertex) -> bool,
+        within: &dyn Fn(Vertex) -> bool,
+        phase: Phase,
+    ) -> Vertex {
+        let path = self.map.path_to(
+            self.pos[j],
+            |u| goal(u) && !self.occupied_by_other(j, u),
+            |u| (within(u) || goal(u)) && !self.occupied_by_other(j, u),
+        );
+        if let Some(path) = path {
+            for &u in &path[1..] {
+                self.pos[j] = u;
+                self.robot_steps += 1;
+                self.push(phase, Vec::new());
+            }
+        }
+        self.pos[j]
+    }
+
+    /// Brings a child onto `c` with the parent on another vertex that has `c` in its
+    /// LOS_free, for a vertex the stage's parent vertex cannot let a child reach (the parent
+    /// would have to leave through `c` itself, as at the end of a dead end): the parent
+    /// drives to the nearest such stands in turn and lets a child through there. The parent
+    /// stays on the stand; the next grab or stage moves it on. Returns the child.
+    pub(super) fn bring_child_from_stand(
+        &mut self,
+        phase: Phase,
+        c: Vertex,
+    ) -> Result<Option<usize>, PlanError> {
+        let from_here = self.map.distances(self.pos[0], |_| true);
+        let mut stands: Vec<Vertex> = self.vis.los[c]
+            .iter()
+            .copied()
+            .filter(|&w| {
+                from_here[w] != usize::MAX && self.vis.los_free[w].binary_search(&c).is_ok()
+            })
+            .collect();
+        stands.sort_by_key(|&w| (from_here[w], w));
+        for w in stands.into_iter().take(8) {
+            if self.drive_parent(w, phase, &|_| false).is_err() {
+                continue;
+            }
+            if let Some(j) = self.bring_child(phase, &|v| v == c, &|_| true)? {
+                return Ok(Some(j));
+            }
+        }
+        Ok(None)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A run with robots placed by letter on a text map (`P` the parent, `k` children).
+    fn run_on<'a>(
+        map: &'a Map,
+        params: &'a CoverageParams,
+        vis: &'a Visibility,
+        rows: &[&str],
+    ) -> Run<'a> {
+        let mut parent = None;
+        let mut kids = Vec::new();
+        for (i, line) in rows.iter().enumerate() {
+            let r = (rows.len() - 1 - i) as i64;
+            for (c, ch) in line.chars().enumerate() {
+                let v = map.at(c as i64, r).unwrap();
+                match ch {
+                    'P' => parent = Some(v),
+                    'k' => kids.push(v),
+                    _ => {}
+                }
+            }
+        }
+        let mut pos = vec![parent.expect("a parent")];
+        pos.extend(kids);
+        Run {
+            map,
+            params,
+            vis,
+            pos,
+            frames: Vec::new(),
+            imaged: vec![false; map.len()],
+            robot_steps: 0,
+            stage: 0,
+            backing_off: 0,
+        }
+    }
+
+    /// Every frame moves exactly one robot one step onto a free vertex, and no two robots
+    /// ever share a vertex.
+    fn assert_legal(map: &Map, start: &[Vertex], frames: &[Frame]) {
+        let mut prev = start.to_vec();
+        for (t, f) in frames.iter().enumerate() {
+            let moved: Vec<usize> = (0..prev.len())
+                .filter(|&k| prev[k] != f.positions[k])
+                .collect();
+            assert_eq!(moved.len(), 1, "frame {t}: robots {moved:?} moved");
+            let k = moved[0];
+            assert!(map.adjacent(prev[k], f.positions[k]), "frame {t}: a jump");
+            assert!(map.is_free(f.positions[k]));
+            let mut sorted = f.positions.clone();
+            sorted.sort_unstable();
+            sorted.dedup();
+            assert_eq!(
+                sorted.len(),
+                f.positions.len(),
+                "frame {t}: robots share a vertex"
+            );
+            prev = f.positions.clone();
+        }
+    }
+
+    #[test]
+    fn the_parent_gets_to_the_end_of_a_dead_end_full_of_children() {
+        // A one-cell corridor off a room, every vertex of it taken by a child; the parent
+        // must stand at its far end.
+        let rows = ["####.....", "kkkP.....", "####....."];
+        let map = Map::from_text(&rows, 0.5);
+        let params = CoverageParams::default();
+        let vis = Visibility::compute(&map, &params);
+        let mut run = run_on(&map, &params, &vis, &rows);
+        let start = run.pos.clone();
+        let end = map.at(0, 1).unwrap();
+        run.drive_parent(end, Phase::Coordination, &|_| false)
+            .unwrap();
+        assert_eq!(run.pos[0], end);
+        assert_legal(&map, &start, &run.frames);
+    }
+
+    #[test]
+    fn a_child_gets_behind_a_parent_that_closes_a_dead_end() {
+        // The parent stands in the mouth of a dead end; the vertex at its end can be reached
+        // only through the parent's vertex. A child is let through, and the parent stands
+        // where it was.
+        let rows = ["#####....", "....P..k.", "#####...."];
+        let map = Map::from_text(&rows, 0.5);
+        let params = CoverageParams::default();
+        let vis = Visibility::compute(&map, &params);
+        let mut run = run_on(&map, &params, &vis, &rows);
+        let start = run.pos.clone();
+        let home = run.pos[0];
+        let goal = map.at(1, 1).unwrap();
+        let j = run
+            .bring_child(Phase::Mapping, &|v| v == goal, &|_| true)
+            .unwrap()
+            .expect("a child gets there");
+        assert_eq!(run.pos[j], goal);
+        assert_eq!(run.pos[0], home);
+        assert_legal(&map, &start, &run.frames);
+    }
+
+    #[test]
+    fn a_vertex_is_imaged_from_a_stand_that_sees_it_freely() {
+        // The tip of a dead end, imaged looking north: the corridor's vertices see it freely
+        // (a parent to the east is outside a north-looking view), the room's do not see it.
+        // The parent drives to the nearest such stand and lets the child in past it.
+        let rows = ["###......", "........P", "###...k.."];
+        let map = Map::from_text(&rows, 0.5);
+        let params = CoverageParams {
+            children: 1,
+            direction: crate::Direction::North,
+            ..CoverageParams::default()
+        };
+        let vis = Visibility::compute(&map, &params);
+        let mut run = run_on(&map, &params, &vis, &rows);
+        let start = run.pos.clone();
+        let tip = map.at(0, 1).unwrap();
+        let j = run
+            .bring_child_from_stand(Phase::Mapping, tip)
+            .unwrap()
+            .expect("a child gets there");
+        assert_eq!(run.pos[j], tip);
+        assert!(vis.los_free[run.pos[0]].binary_search(&tip).is_ok());
+        assert_legal(&map, &start, &run.frames);
+    }
+}
