@@ -340,7 +340,8 @@ fn cooperative_slam_corrects_ressac_and_keeps_dala_within_one_percent() {
         // fully correlated in time, and more rarely still when they are not. (When issue 17
         // was filed, Dala's mean was 192 here and Ressac's 42; after the drift's
         // recalibration on the full village's 1024 x 768 benches, 16.4 and 12.3: at half
-        // that resolution Dala's forward error is 11 times its variance.) The Monte Carlo
+        // that resolution Dala's forward error is 11 times its variance; with Ressac's VO
+        // covariance scaled by 4 in its sub-map EKF, 16.4 and 11.1.) The Monte Carlo
         // test over the full village is in `results/village/README.md`.
         let nees = slam["robots"][robot]["nees_mean"].as_f64().unwrap();
         assert!(
@@ -348,7 +349,8 @@ fn cooperative_slam_corrects_ressac_and_keeps_dala_within_one_percent() {
             "{robot}: mean NEES {nees:.2} outside [0.381, 22.46]"
         );
         // Both robots map lines (measured when set: Dala 2358 line observations used,
-        // Ressac 802; after the recalibration 2980 and 356).
+        // Ressac 802; after the recalibration 2980 and 356; with Ressac's VO scale, 2980 and
+        // 367).
         assert!(
             c["line_observations_used"].as_u64().unwrap() >= 100,
             "{robot}: {c}"
