@@ -22,17 +22,22 @@
 //!   could not image is tried again by later stages; what no stage images is reported.
 //! * **Transitions (Eq. 8).** H = LOS(v_p^t) ∩ LOS(v_p^(t+1)) without the parent's path and
 //!   the two parent vertices. If the children can take N distinct vertices of H, they move
-//!   there (nearest first), then the parent drives its shortest path. Otherwise a following
+//!   there (nearest first), then the parent drives its shortest path (children in its way
+//!   make way). Otherwise a following
 //!   behaviour is counted: children standing on the parent's path step off it, the parent
 //!   drives, and the children follow it into LOS(v_p^(t+1)), nearest first.
 //! * **Start.** The parent first drives from its start vertex to the first parent vertex in
 //!   the same way. Children given no start vertices stand on the free vertices nearest the
 //!   parent (breadth-first order) that are not dead ends.
-//! * **Infeasible transitions.** Moves are single steps between free vertices and robots
-//!   never pass each other, so a one-vertex-wide passage can make a transition impossible
-//!   (a child shut in a dead end that the parent must enter). Such a stage is skipped and
-//!   reported; later stages image what they can of its vertices, and the rest is reported as
-//!   `unreached`, apart from `uncoverable` (vertices no parent vertex sees freely).
+//! * **Robots in each other's way** ([`moves`]). Moves are single steps between free
+//!   vertices and robots never pass each other, so in a one-vertex-wide passage robots make
+//!   way: children shift towards the nearest empty vertex, the parent backs off to let a
+//!   pocket of children out, or steps aside to let one behind it. A vertex a stage still
+//!   cannot image with the parent on its parent vertex is imaged from another vertex that
+//!   sees it freely, in the stage or after the tour (`revisited`). A transition that fails
+//!   all the same skips its stage (`skipped_stages`; none on the Table I-II sweeps), and what
+//!   nothing images is `unreached`, apart from `uncoverable` (vertices no vertex the parent
+//!   can reach sees freely).
 
 use crate::map::{Map, Vertex};
 use crate::roadmap::stage_roadmaps;
@@ -79,17 +84,18 @@ pub struct Plan {
     /// Vertices of V \ V_p that no vertex the parent can reach has in its LOS_free: no
     /// parent placement lets a child image them.
     pub uncoverable: Vec<Vertex>,
-    /// Vertices some parent vertex does see freely, but that were not imaged because the
-    /// team could not get there (see `skipped_stages`).
+    /// Vertices some vertex the parent can reach sees freely, but that were not imaged
+    /// because the team could not get there (none expected; see `skipped_stages`).
     pub unreached: Vec<Vertex>,
     /// Stages (indices into `parent_vertices`) skipped because the team could not be moved
     /// there (none is expected: the moves of [`moves`] let robots by each other; a skip
     /// would be a bug, and the sweeps report it).
     pub skipped_stages: Vec<usize>,
     /// Vertices imaged after the tour, with the parent on a vertex (not necessarily a
-    /// parent vertex) that has them in its LOS_free: those the stages could not get a child
-    /// onto with the parent on the stage's own parent vertex (a dead end the parent's vertex
-    /// closes, a view the team could not clear).
+    /// parent vertex) that has them in its LOS_free: those the stages left (a view the team
+    /// could not clear, a vertex the stand could not serve). Within a stage, a vertex the
+    /// parent vertex cannot serve is imaged from such a stand too, and counted in that
+    /// stage's `child_sets`.
     pub revisited: Vec<Vertex>,
     /// Positions at the start: the parent, then the children.
     pub start: Vec<Vertex>,

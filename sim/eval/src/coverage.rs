@@ -30,7 +30,7 @@ pub struct CoverageMetrics {
     pub skipped_stages: usize,
     /// Vertices imaged after the tour from another vertex that sees them freely.
     pub revisited: usize,
-    /// Vertices no parent vertex sees freely.
+    /// Vertices no vertex the parent can reach sees freely.
     pub uncoverable: usize,
     /// Visible vertices the team could not reach.
     pub unreached: usize,

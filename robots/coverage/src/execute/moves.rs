@@ -5,10 +5,11 @@
 //! to fail: the robots between a vertex and the nearest empty one shift one step each along
 //! the path between them (unlabelled pebble motion), which empties the vertex in as many
 //! single steps as there are robots on that path. The parent is the one robot that must
-//! itself get somewhere. It can be blocked only by a pocket: the part of the map beyond its
-//! next step, cut off by the parent's own vertex, in which every vertex holds a child. Then
-//! the parent yields: it backs off to the nearest vertex from which the pocket's children
-//! can leave past it, they leave, and it goes on. A child that must get behind the parent
+//! itself get somewhere. It is blocked when the children ahead have no empty vertex to move
+//! to in the pocket beyond its next step (the part of the map its own vertex cuts off; a
+//! pocket a back-off already emptied is not refilled from outside): every vertex there holds
+//! a child. Then the parent yields: it backs off to the nearest vertex from which the
+//! pocket's children can leave past it, they leave, and it goes on. A child that must get behind the parent
 //! (to image a vertex the parent's vertex cuts off) is let through the same way.
 
 use super::*;
@@ -25,9 +26,12 @@ impl Run<'_> {
     }
 
     /// Empties vertex `v` by shifting the children on a shortest path from `v` to the nearest
-    /// vertex with no robot, one step each, starting with the one nearest that vertex. The
-    /// path avoids the parent and every vertex in `keep` (robots there do not move); holes
-    /// where `hole_ok` is false are passed over. Returns whether `v` is now empty.
+    /// vertex with no robot where `hole_ok` holds, one step each, starting with the one
+    /// nearest that vertex. The path avoids the parent and every vertex in `keep` (robots
+    /// there do not move, and a kept `v` is not emptied). An empty vertex on the way where
+    /// `hole_ok` is false is not the end of the path, but the shift can leave a child on it
+    /// (and empty the vertex after it instead): `hole_ok` says where the chain may end, not
+    /// which vertices stay empty. Returns whether `v` is now empty.
     pub(super) fn make_way(
         &mut self,
         v: Vertex,
@@ -37,6 +41,9 @@ impl Run<'_> {
     ) -> bool {
         if self.child_at(v).is_none() {
             return self.pos[0] != v;
+        }
+        if keep(v) {
+            return false;
         }
         let parent = self.pos[0];
         let Some(path) = self.map.path_to(
@@ -200,7 +207,14 @@ impl Run<'_> {
             let stand = self.pos[0];
             let exit = self.map.path_to(
                 inside,
-                |u| !in_pocket[u] && u != stand && !self.occupied_by_other(usize::MAX, u),
+                // Not the vertex the parent just left: a child parked there would block
+                // its way back in.
+                |u| {
+                    !in_pocket[u]
+                        && u != stand
+                        && u != here
+                        && !self.occupied_by_other(usize::MAX, u)
+                },
                 |u| u != stand && !keep(u),
             );
             let Some(exit) = exit else {
@@ -268,12 +282,17 @@ impl Run<'_> {
             if let Some(j) = self.nearest_child_to(goal, within, w) {
                 let at = self.walk_child(j, goal, within, phase);
                 let pinned = move |u: Vertex| u == at;
-                self.drive_parent(home, phase, &pinned)?;
+                // Every step made was legal; a parent that cannot get back leaves this
+                // vertex unimaged (the next grab drives it back first).
+                if self.drive_parent(home, phase, &pinned).is_err() {
+                    return Ok(None);
+                }
                 return Ok(goal(at).then_some(j));
             }
         }
         if self.pos[0] != home {
-            self.drive_parent(home, phase, &|_| false)?;
+            // Best effort, as above.
+            let _ = self.drive_parent(home, phase, &|_| false);
         }
         Ok(None)
     }

@@ -202,13 +202,17 @@ impl Run<'_> {
                 return false;
             }
         }
-        !self.view_blocked(robot, c)
+        // A robot pushed aside may have pushed the grabbing child off c.
+        self.pos[robot] == c && !self.view_blocked(robot, c)
     }
 
     /// Images `c` after the tour ([`Plan::revisited`]): the parent drives to a vertex that
     /// sees `c` freely, a child is brought there and the view is cleared. The child, if it
     /// grabbed.
     pub(super) fn revisit(&mut self, c: Vertex) -> Result<Option<usize>, PlanError> {
+        if self.pos.len() < 2 {
+            return Ok(None);
+        }
         let Some(robot) = self.bring_child_from_stand(Phase::Mapping, c)? else {
             return Ok(None);
         };
