@@ -242,7 +242,7 @@ fn a_killed_sweep_leaves_only_whole_rows_and_resumes_to_the_same_files() {
     for row in &finished {
         let text = std::fs::read_to_string(row).unwrap();
         assert!(
-            text.ends_with('\n') && text.trim_end().split(',').count() == 14,
+            text.ends_with('\n') && text.trim_end().split(',').count() == 17,
             "whole row in {}: {text:?}",
             row.display()
         );
@@ -288,7 +288,7 @@ fn a_short_or_mangled_row_file_is_an_error_naming_the_file_not_a_panic() {
         .unwrap_err()
         .to_string();
     assert!(
-        e.contains("000003.csv") && e.contains("4 fields") && e.contains("14 columns"),
+        e.contains("000003.csv") && e.contains("4 fields") && e.contains("17 columns"),
         "{e}"
     );
     // A metric that is not a number names its column.
