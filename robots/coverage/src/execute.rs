@@ -114,25 +114,19 @@ pub struct Plan {
 impl Plan {
     /// Images grabbed over V \ V_p.
     pub fn coverage(&self) -> f64 {
-        let target = self.vertices - self.parent_vertices.len();
-        let imaged: usize =
-            self.child_sets.iter().map(Vec::len).sum::<usize>() + self.revisited.len();
-        if target == 0 {
-            1.0
-        } else {
-            imaged as f64 / target as f64
-        }
+        self.imaged_fraction(self.vertices - self.parent_vertices.len())
     }
-}
 
-impl Plan {
     /// Images grabbed over the vertices of V \ V_p that some vertex sees freely: Eq. 4
     /// promises 1 where every vertex is seen freely by some vertex, and the team's moves
     /// keep that promise on every vertex that is.
     pub fn coverable_coverage(&self) -> f64 {
-        let target = self.vertices - self.parent_vertices.len() - self.uncoverable.len();
-        let imaged: usize =
-            self.child_sets.iter().map(Vec::len).sum::<usize>() + self.revisited.len();
+        self.imaged_fraction(self.vertices - self.parent_vertices.len() - self.uncoverable.len())
+    }
+
+    /// Images grabbed (in the stages and after the tour) over `target` vertices.
+    fn imaged_fraction(&self, target: usize) -> f64 {
+        let imaged = self.child_sets.iter().map(Vec::len).sum::<usize>() + self.revisited.len();
         if target == 0 {
             1.0
         } else {
@@ -472,27 +466,28 @@ pub fn plan_with(
     // whichever vertex that sees it freely a child can get there.
     run.stage = order.len();
     let mut revisited = Vec::new();
+    let mut tried = vec![false; map.len()];
     loop {
         let from_parent = map.distances(run.pos[0], |_| true);
         let Some(c) = map
             .vertices()
             .into_iter()
-            .filter(|&v| seen[v] && !is_parent[v] && !run.imaged[v] && !revisited.contains(&v))
+            .filter(|&v| seen[v] && !is_parent[v] && !run.imaged[v] && !tried[v])
             .filter(|&v| from_parent[v] != usize::MAX)
             .min_by_key(|&v| (from_parent[v], v))
         else {
             break;
         };
+        // Tried once, imaged or not.
+        tried[c] = true;
         if let Some(j) = run.revisit(c)? {
             run.imaged[c] = true;
+            revisited.push(c);
             if let Some(last) = run.frames.last_mut() {
                 last.grabs.push((j, c));
             }
         }
-        // Tried once either way.
-        revisited.push(c);
     }
-    revisited.retain(|&v| run.imaged[v]);
     let (unreached, uncoverable): (Vec<Vertex>, Vec<Vertex>) = map
         .vertices()
         .into_iter()

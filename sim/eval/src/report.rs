@@ -170,13 +170,7 @@ pub fn coverage_report(
                 .zip(&c.values)
                 .map(|(a, v)| format!("{}={v}", a.rsplit('.').next().unwrap_or(a)))
                 .collect();
-            let least = |m: &str| {
-                c.stat(m)
-                    .samples
-                    .iter()
-                    .copied()
-                    .fold(f64::INFINITY, f64::min)
-            };
+            let least = |m: &str| c.stat(m).least();
             let sum = |m: &str| c.stat(m).samples.iter().sum::<f64>();
             md.push_str(&format!(
                 "| {name} | {} | {:.0} | {:.0} | {:.0} | {:.4} | {:.4} | {:.4} | {} | {} |\n",

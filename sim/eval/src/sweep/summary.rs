@@ -17,6 +17,13 @@ pub struct Stat {
     pub missing: usize,
 }
 
+impl Stat {
+    /// The smallest value (infinity when there is none).
+    pub fn least(&self) -> f64 {
+        self.samples.iter().copied().fold(f64::INFINITY, f64::min)
+    }
+}
+
 /// The runs of one combination of axis values.
 #[derive(Clone, Debug, PartialEq)]
 pub struct SummaryCell {
@@ -200,13 +207,7 @@ fn plan_markdown(sweep: &Sweep, stats: &[SummaryCell], finished: usize) -> Strin
                 }
             })
             .collect();
-        let least = |m: &str| {
-            cell.stat(m)
-                .samples
-                .iter()
-                .copied()
-                .fold(f64::INFINITY, f64::min)
-        };
+        let least = |m: &str| cell.stat(m).least();
         let skipped: f64 = cell.stat("skipped_stages").samples.iter().sum();
         md.push_str(&format!(
             "| {} | {} | {} | {:.4} | {:.4} | {} |\n",
