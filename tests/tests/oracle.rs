@@ -1,6 +1,6 @@
 //! Truth reaches a robot only through an oracle its robot file declares, and the coverage
-//! children do not depend on it: with every truth message withheld from them they compute the
-//! same bytes.
+//! team (the parent, which localizes from its laser, and the children) does not depend on it:
+//! with every truth message withheld from them they compute the same bytes.
 
 use hetsim_tests::{hetsim, printed_digest, repo};
 use serde_json::Value;
@@ -10,9 +10,9 @@ fn json(path: &Path) -> Value {
     serde_json::from_slice(&std::fs::read(path).unwrap()).unwrap()
 }
 
-/// Runs the lab mission's first two minutes, with the children's oracle switched on or left as
-/// their robot file declares it (off); returns the results folder and the digest.
-fn lab(dir: &Path, children_oracle: bool) -> (std::path::PathBuf, String) {
+/// Runs the lab mission's first two minutes, with every robot's oracle switched on or left as
+/// the robot files declare it (off); returns the results folder and the digest.
+fn lab(dir: &Path, oracle: bool) -> (std::path::PathBuf, String) {
     let mut text = std::fs::read_to_string(repo().join("scenarios/lab.toml")).unwrap();
     text = text.replacen(
         "schema_version = 1\n",
@@ -22,13 +22,16 @@ fn lab(dir: &Path, children_oracle: bool) -> (std::path::PathBuf, String) {
         ),
         1,
     );
-    if children_oracle {
-        text = text.replace(
-            "mission = { kind = \"coverage_child\" }",
-            "mission = { kind = \"coverage_child\" }\noverrides = { \"sensors.truth.enabled\" = true }",
-        );
+    if oracle {
+        for kind in ["coverage_child", "coverage_parent"] {
+            let mission = format!("mission = {{ kind = \"{kind}\" }}");
+            text = text.replace(
+                &mission,
+                &format!("{mission}\noverrides = {{ \"sensors.truth.enabled\" = true }}"),
+            );
+        }
     }
-    let name = if children_oracle { "with" } else { "without" };
+    let name = if oracle { "with" } else { "without" };
     let scenario = dir.join(format!("lab-{name}.toml"));
     std::fs::write(&scenario, text).unwrap();
     let out = dir.join(name);
@@ -48,7 +51,7 @@ fn lab(dir: &Path, children_oracle: bool) -> (std::path::PathBuf, String) {
 }
 
 #[test]
-fn coverage_children_compute_the_same_bytes_without_truth() {
+fn the_coverage_team_computes_the_same_bytes_without_truth() {
     let dir = tempfile::tempdir().unwrap();
     let (without, d_without) = lab(dir.path(), false);
     let (with, d_with) = lab(dir.path(), true);
@@ -56,7 +59,7 @@ fn coverage_children_compute_the_same_bytes_without_truth() {
         json(&without.join("manifest.json")),
         json(&with.join("manifest.json")),
     );
-    // The manifest lists every oracle: the parent's, and the children's only when on.
+    // The manifest lists every oracle that is on: none as the robot files declare them.
     let oracle_robots = |m: &Value| -> Vec<String> {
         m["oracles"]
             .as_array()
@@ -66,7 +69,7 @@ fn coverage_children_compute_the_same_bytes_without_truth() {
             .map(|o| o["robot"].as_str().unwrap().to_string())
             .collect()
     };
-    assert_eq!(oracle_robots(&m_without), ["parent"]);
+    assert!(oracle_robots(&m_without).is_empty());
     assert_eq!(
         oracle_robots(&m_with),
         ["parent", "child1", "child2", "child3"]
@@ -77,9 +80,9 @@ fn coverage_children_compute_the_same_bytes_without_truth() {
             .as_u64()
             .unwrap_or(0)
     };
-    for child in ["child1", "child2", "child3"] {
-        assert_eq!(truth_count(&without, child), 0, "{child} got truth");
-        assert!(truth_count(&with, child) > 100, "{child} got no truth");
+    for robot in ["parent", "child1", "child2", "child3"] {
+        assert_eq!(truth_count(&without, robot), 0, "{robot} got truth");
+        assert!(truth_count(&with, robot) > 100, "{robot} got no truth");
     }
     assert_ne!(d_without, d_with, "the delivered truth is in the digest");
     // What every stack computed (commands and radio messages) is the same bytes.

@@ -212,7 +212,8 @@ fn the_tracker_sees_children_within_2_m_only_in_line_of_sight() {
             vec!["near"],
             "1.5 m away and visible; 'far' is 2.5 m away, 'hidden' behind a cabinet"
         );
-        errors.push((t.tracks[0].position_m[0] + 1.25).hypot(t.tracks[0].position_m[1] - 0.25));
+        // In the parent's body frame (it faces east): 1.5 m straight ahead.
+        errors.push((t.tracks[0].position_m[0] - 1.5).hypot(t.tracks[0].position_m[1]));
     }
     // |N(0.04, 0.02)|: mean 0.0403 (the fold adds 0.3 mm), std about 0.0195.
     let (m, sd) = mean_std(&errors);

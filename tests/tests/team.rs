@@ -111,6 +111,25 @@ fn lab_mission_images_every_reachable_vertex_with_a_stable_digest() {
         t["heading_error_deg"]["mean"].as_f64().unwrap() < 8.0,
         "{t}"
     );
+    // The parent localizes from its laser: its error stays below the 0.08 m its 0.34 m body
+    // leaves on each side of a 0.5 m cell (else it would graze the furniture), and its
+    // heading within 10 degrees (a corner 0.24 m out moves by under 0.04 m).
+    let loc = &t["parent_localization"];
+    assert!(loc["estimates"].as_u64().unwrap() > 100, "{loc}");
+    assert!(
+        loc["position_error_max_m"].as_f64().unwrap() < 0.08,
+        "{loc}"
+    );
+    assert!(
+        loc["heading_error_max_deg"].as_f64().unwrap() < 10.0,
+        "{loc}"
+    );
+    assert!(
+        m["estimates"]["mcl/parent"]["ate_unaligned_m"]
+            .as_f64()
+            .unwrap()
+            < 0.05
+    );
     // Mission time in the range of the seed's 38.4 min (our children turn faster).
     let minutes = t["mission_min"].as_f64().unwrap();
     assert!((15.0..45.0).contains(&minutes), "{minutes} min");

@@ -20,6 +20,7 @@
 pub mod execute;
 pub mod localize;
 pub mod map;
+pub mod mcl;
 pub mod parent;
 pub mod report;
 pub mod roadmap;

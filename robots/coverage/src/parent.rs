@@ -6,8 +6,13 @@
 //! * **Map.** The parent is given the occupancy map at resolution d ([`CoverageMission`]),
 //!   as the seed assumes ("a range map of the environment was created before, e.g., by the
 //!   parent robot"); building it is not part of this mission.
-//! * **Localization.** The parent localizes accurately, as in the seed: it uses its true
-//!   pose. It drives between vertices by rotating in place, then straight.
+//! * **Localization.** The seed's parent "has an accurate localization"; this one earns it:
+//!   Monte Carlo localization from its laser scans and wheel encoders against the map it is
+//!   given, starting around the pose the operator gives ([`crate::mcl`]). It steers, plans
+//!   and places the children's tracks (measured in its body frame) with that estimate, and
+//!   publishes it as the `mcl` trajectory. It reads no truth: an oracle pose in its inbox
+//!   (a scenario may switch the parent model's on for waypoint following) is ignored. It
+//!   drives between vertices by rotating in place, then straight.
 //! * **Execution.** The grid-level plan ([`crate::plan`]) is executed timestep by timestep:
 //!   the robots that move in a timestep are driven to their next vertex together; when all
 //!   have arrived, the timestep's grabs are ordered; when all images are in, the next
@@ -35,6 +40,7 @@
 //!   whose reply does not come is ordered again; see [`crate::team`].
 
 use crate::map::{Map, Vertex};
+use crate::mcl::{Mcl, MclParams};
 use crate::report::{DatabaseImage, TeamReport, TEAM_ARTIFACT};
 use crate::team::{Order, TeamMsg};
 use crate::visibility::line_of_sight;
@@ -45,6 +51,7 @@ use hetsim_msgs::{
 };
 use hetsim_pilot::{GroundPilot, GroundPilotParams};
 
+mod sense;
 mod teleop;
 
 /// Tuning of the parent's teleoperation.
@@ -64,6 +71,13 @@ pub struct ParentParams {
     pub reacquire_ns: u64,
     /// Unacknowledged orders are repeated this often, nanoseconds.
     pub resend_ns: u64,
+    /// The laser the parent localizes with, `[x, y, yaw]` in its body frame (metres,
+    /// radians); without one it can only steer by an oracle.
+    pub laser_mount: Option<[f64; 3]>,
+    /// Its laser localization.
+    pub mcl: MclParams,
+    /// Seed of the localization's random numbers.
+    pub seed: u64,
 }
 
 impl ParentParams {
@@ -85,6 +99,9 @@ impl ParentParams {
             lost_after_ns: 500_000_000,
             reacquire_ns: 3_000_000_000,
             resend_ns: 500_000_000,
+            laser_mount: None,
+            mcl: MclParams::default(),
+            seed: 0,
         }
     }
 }
@@ -141,7 +158,11 @@ pub struct ParentStack {
     map: Map,
     plan: Option<Plan>,
     plan_failed: bool,
+    /// The pose it steers by: the laser localization's.
     pose: Option<Pose>,
+    localizer: Option<Mcl>,
+    /// The localization's estimates, one per filter update.
+    estimates: Vec<(u64, Pose)>,
     step_index: usize,
     moves_started: bool,
     grabbing: bool,
@@ -191,8 +212,22 @@ impl ParentStack {
                 child_radius_m: 0.06,
                 f_factor: 2.0,
                 child_speed_mps: 0.15,
+                parent_start: [0.0; 3],
             },
         };
+        let localizer = params
+            .laser_mount
+            .filter(|_| mission.grid.cols > 0)
+            .map(|mount| {
+                Mcl::new(
+                    params.mcl,
+                    &mission.grid,
+                    mission.parent_start,
+                    params.pilot.track_m,
+                    mount,
+                    params.seed,
+                )
+            });
         let coverage = CoverageParams {
             r_los_m: mission.r_los_m,
             direction: direction(&mission.direction),
@@ -228,6 +263,8 @@ impl ParentStack {
             plan: None,
             plan_failed: false,
             pose: None,
+            localizer,
+            estimates: Vec::new(),
             step_index: 0,
             moves_started: false,
             grabbing: false,
@@ -401,38 +438,17 @@ impl ParentStack {
         self.now_ns = now_ns;
         for msg in inbox {
             match msg {
-                SensorMsg::TruthPose(p) => self.pose = Some(p.pose),
-                SensorMsg::ChildTracks(t) => {
-                    for track in &t.tracks {
-                        let Some(i) = self.children.iter().position(|c| c.name == track.child)
-                        else {
-                            continue;
-                        };
-                        let c = &mut self.children[i];
-                        let fresh = c
-                            .last_fix_ns
-                            .is_none_or(|t0| t.stamp_ns.saturating_sub(t0) > 300_000_000);
-                        // A light low-pass against the tracker's noise; a fresh track after
-                        // a gap is taken as it is.
-                        let alpha = if fresh { 1.0 } else { 0.4 };
-                        c.estimate = [
-                            c.estimate[0] + alpha * (track.position_m[0] - c.estimate[0]),
-                            c.estimate[1] + alpha * (track.position_m[1] - c.estimate[1]),
-                        ];
-                        c.last_fix_ns = Some(t.stamp_ns);
-                        if c.path
-                            .last()
-                            .is_none_or(|(t0, _)| t.stamp_ns >= t0 + 200_000_000)
-                        {
-                            c.path.push((t.stamp_ns, track.position_m));
-                        }
-                        if let Task::Grab { fixes, .. } = &mut c.task {
-                            fixes.0[0] += track.position_m[0];
-                            fixes.0[1] += track.position_m[1];
-                            fixes.1 += 1;
-                        }
+                SensorMsg::WheelOdometry(o) => {
+                    if let Some(m) = self.localizer.as_mut() {
+                        m.wheel_odometry(o.left_m, o.right_m);
                     }
+                    self.localized(o.stamp_ns, false);
                 }
+                SensorMsg::LaserScan(scan) => {
+                    let updated = self.localizer.as_mut().is_some_and(|m| m.laser(scan));
+                    self.localized(scan.stamp_ns, updated);
+                }
+                SensorMsg::ChildTracks(t) => self.tracks(t),
                 SensorMsg::Comms(d) => {
                     if let (Some(i), Some(m)) = (
                         self.children.iter().position(|c| c.name == d.from),
@@ -497,7 +513,11 @@ impl RobotStack for ParentStack {
     }
 
     fn artifacts(&self) -> Vec<Artifact> {
-        vec![Artifact::report(TEAM_ARTIFACT, &self.team_report())]
+        let mut out = vec![Artifact::report(TEAM_ARTIFACT, &self.team_report())];
+        if !self.estimates.is_empty() {
+            out.push(Artifact::trajectory("mcl", self.estimates.clone()));
+        }
+        out
     }
 }
 

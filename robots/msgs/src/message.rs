@@ -112,6 +112,10 @@ pub struct CoverageMission {
     pub f_factor: f64,
     /// Children's driving speed, metres per second (0.15 in the seed).
     pub child_speed_mps: f64,
+    /// The parent's start pose `[x, y, heading]` (metres, radians) as the operator gives it:
+    /// the prior of its laser localization, as one sets a ROS `amcl` initial pose.
+    #[serde(default)]
+    pub parent_start: [f64; 3],
 }
 
 /// A compass heading.
@@ -186,7 +190,8 @@ pub struct LaserScan {
 pub struct Track {
     /// The child robot's name.
     pub child: String,
-    /// Its measured position in the world's xy plane, metres.
+    /// Its measured position on the floor in the parent's body frame (x forward, y left),
+    /// metres: the tracker knows where the hat is relative to the camera, not in the world.
     pub position_m: [f64; 2],
 }
 

@@ -86,6 +86,62 @@ pub struct TeamMetrics {
     /// Database images with another robot in view farther than r_los (the seed's planner
     /// does not consider robots beyond r_los; a 1.5 m parent is visible across a room).
     pub images_with_distant_robot_in_view: usize,
+    /// The parent's laser localization against its truth (absent when it steered by the
+    /// oracle pose).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub parent_localization: Option<ParentLocalization>,
+}
+
+/// The parent's Monte Carlo localization (its `mcl` trajectory, one pose per filter update)
+/// against its true pose at the same stamps.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct ParentLocalization {
+    /// Estimates compared.
+    pub estimates: usize,
+    /// Horizontal position error, metres.
+    pub position_error_m: MeanStd,
+    /// 95th percentile of the position error, metres.
+    pub position_error_p95_m: f64,
+    /// Largest position error, metres.
+    pub position_error_max_m: f64,
+    /// Heading error, degrees.
+    pub heading_error_deg: MeanStd,
+    /// Largest heading error, degrees.
+    pub heading_error_max_deg: f64,
+}
+
+impl ParentLocalization {
+    /// The parent's `mcl` trajectory among the run's artifacts, against its truth.
+    pub fn of(output: &RunOutput, parent: &str) -> Option<Self> {
+        let (_, artifacts) = output.artifacts.iter().find(|(r, _)| r == parent)?;
+        let poses = artifacts.iter().find_map(|a| match &a.data {
+            hetsim_msgs::ArtifactData::Trajectory(p) if a.name == "mcl" => Some(p),
+            _ => None,
+        })?;
+        let truth = output.truth_of(parent)?;
+        let (mut pos, mut head) = (Vec::new(), Vec::new());
+        for (stamp, est) in poses {
+            let t = truth_at(truth, *stamp);
+            let (a, b) = (est.translation.vector, t.translation.vector);
+            pos.push((a.x - b.x).hypot(a.y - b.y));
+            head.push(wrap_angle(yaw_of(est) - yaw_of(&t)).abs().to_degrees());
+        }
+        let max = |v: &[f64]| v.iter().cloned().fold(0.0, f64::max);
+        let mut sorted = pos.clone();
+        sorted.sort_by(f64::total_cmp);
+        let p95 = sorted
+            .get(((sorted.len() as f64 * 0.95).ceil() as usize).saturating_sub(1))
+            .copied()
+            .unwrap_or(0.0);
+        Some(Self {
+            estimates: pos.len(),
+            position_error_m: MeanStd::population(&pos),
+            position_error_p95_m: p95,
+            position_error_max_m: max(&pos),
+            heading_error_deg: MeanStd::population(&head),
+            heading_error_max_deg: max(&head),
+        })
+    }
 }
 
 /// The distance to the nearest other robot that appears in the image child `robot` took at
@@ -217,6 +273,7 @@ impl TeamMetrics {
             images_with_robot_in_view: in_view,
             images_with_distant_robot_in_view: distant,
             localization: Vec::new(),
+            parent_localization: ParentLocalization::of(output, &outcome.parent),
         }
     }
 }

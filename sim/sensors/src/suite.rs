@@ -428,9 +428,16 @@ impl SensorSuite {
                     }
                     let magnitude = error.sample(&mut s.rng).abs();
                     let angle = s.rng.random_range(0.0..std::f64::consts::TAU);
+                    // The measured floor position, in the parent's body frame.
+                    let seen = Vector3::new(
+                        p.x + magnitude * angle.cos(),
+                        p.y + magnitude * angle.sin(),
+                        world_from_body.translation.vector.z,
+                    );
+                    let local = world_from_body.inverse_transform_point(&seen.into());
                     tracks.push(Track {
                         child: names[other].clone(),
-                        position_m: [p.x + magnitude * angle.cos(), p.y + magnitude * angle.sin()],
+                        position_m: [local.x, local.y],
                     });
                 }
                 vec![SensorMsg::ChildTracks(ChildTracks {

@@ -86,7 +86,7 @@ pub fn build_stack(
     seed: u64,
     open_loop: bool,
 ) -> Box<dyn RobotStack> {
-    let pilot = build_pilot(scenario, robot);
+    let pilot = build_pilot(scenario, robot, seed);
     let stereo = stereo_bench(robot);
     match stereo {
         Some(StereoBench {
@@ -164,11 +164,11 @@ fn tune(params: &mut hetsim_slam::stack::SlamParams, t: &hetsim_scene::SlamTunin
     }
 }
 
-fn build_pilot(scenario: &Scenario, robot: &ResolvedRobot) -> Box<dyn RobotStack> {
+fn build_pilot(scenario: &Scenario, robot: &ResolvedRobot, seed: u64) -> Box<dyn RobotStack> {
     let model = &robot.model;
     let pilot = &model.pilot;
     let mission = mission(scenario, &robot.spec.mission);
-    if let Some(stack) = coverage_stack(robot, &mission) {
+    if let Some(stack) = coverage_stack(robot, &mission, seed) {
         return stack;
     }
     match model.body.drive {
@@ -229,12 +229,26 @@ fn ground_params(robot: &ResolvedRobot) -> GroundPilotParams {
 }
 
 /// The coverage mission's stacks (seed 002): the parent and its teleoperated children.
-fn coverage_stack(robot: &ResolvedRobot, mission: &Mission) -> Option<Box<dyn RobotStack>> {
+fn coverage_stack(
+    robot: &ResolvedRobot,
+    mission: &Mission,
+    seed: u64,
+) -> Option<Box<dyn RobotStack>> {
     match mission {
-        Mission::CoverageParent(_) => Some(Box::new(hetsim_coverage::ParentStack::new(
-            hetsim_coverage::ParentParams::with_pilot(ground_params(robot)),
-            mission,
-        ))),
+        Mission::CoverageParent(_) => {
+            let mut params = hetsim_coverage::ParentParams::with_pilot(ground_params(robot));
+            params.seed = seed;
+            // The laser the parent localizes with: its first, as mounted (planar: x, y, yaw).
+            params.laser_mount = robot.model.sensors.iter().find_map(|s| match s {
+                Sensor::Laser { mount, .. } => Some([
+                    mount.xyz_m[0],
+                    mount.xyz_m[1],
+                    mount.rpy_deg[2].to_radians(),
+                ]),
+                _ => None,
+            });
+            Some(Box::new(hetsim_coverage::ParentStack::new(params, mission)))
+        }
         Mission::Teleoperated { .. } => {
             let model = &robot.model;
             let w = model
@@ -292,6 +306,17 @@ fn mission(scenario: &Scenario, spec: &MissionSpec) -> Mission {
                             .map(|cell| (r.spec.name.clone(), cell))
                     })
                     .collect::<Vec<_>>();
+                let parent_start = scenario
+                    .robots
+                    .iter()
+                    .find(|r| matches!(r.spec.mission, MissionSpec::CoverageParent))
+                    .map_or([0.0; 3], |r| {
+                        [
+                            r.spec.start.x,
+                            r.spec.start.y,
+                            r.spec.start.yaw_deg.to_radians(),
+                        ]
+                    });
                 let child_speed_mps = scenario
                     .robots
                     .iter()
@@ -308,6 +333,7 @@ fn mission(scenario: &Scenario, spec: &MissionSpec) -> Mission {
                     child_radius_m: params.child_radius_m,
                     f_factor: params.f_factor,
                     child_speed_mps,
+                    parent_start,
                 })
             }
             None => Mission::Idle,

@@ -49,7 +49,7 @@ const NAV_SAT_STATUS: (&str, &str) = (
 );
 const CHILD_TRACK: (&str, &str) = (
     "hetsim_msgs/ChildTrack",
-    "# A child's position on the floor as the parent's tracker measured it, world frame.\nstring child\nfloat64 x\nfloat64 y\n",
+    "# A child's position on the floor as the parent's tracker measured it, in the parent's body frame (x forward, y left).\nstring child\nfloat64 x\nfloat64 y\n",
 );
 
 /// The `ros2msg` definition of a schema name used in recordings.
