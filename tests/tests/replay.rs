@@ -89,6 +89,43 @@ fn a_replayed_village_computes_the_live_runs_bytes_and_a_changed_parameter_chang
     for name in ["slam/ressac.tum", "slam-open/ressac.tum", "vo/ressac.tum"] {
         assert!(file(&live, name) == file(&ressac, name), "{name}");
     }
+    // Robot software reads no truth: with every oracle message withheld from both robots
+    // (their pilots, which steer by the oracle, then stand still, so commands are not
+    // compared), the SLAM and VO of both compute the same bytes, through the rendezvous and
+    // the radio exchange of graphs and key frames, and send the same radio traffic.
+    let blind = tmp.path().join("blind");
+    ok(&["replay", &s(&rec), "--withhold-truth", "--out", &s(&blind)]);
+    for robot in ["dala", "ressac"] {
+        for kind in ["slam", "slam-open", "vo"] {
+            let name = format!("{kind}/{robot}.tum");
+            assert!(
+                file(&live, &name) == file(&blind, &name),
+                "{name} changed with the truth withheld"
+            );
+        }
+    }
+    assert!(file(&live, "map.ply") == file(&blind, "map.ply"));
+    let blind_m: serde_json::Value = serde_json::from_slice(&file(&blind, "metrics.json")).unwrap();
+    let live_m: serde_json::Value = serde_json::from_slice(&file(&live, "metrics.json")).unwrap();
+    assert!(
+        live_m["comms"]["sent"].as_u64().unwrap() > 0,
+        "{}",
+        live_m["comms"]
+    );
+    assert_eq!(
+        blind_m["comms"], live_m["comms"],
+        "the radio traffic changed"
+    );
+    assert_eq!(blind_m["slam"], live_m["slam"]);
+    // ... while the oracle did reach them in the live run, and not in this replay.
+    for robot in ["dala", "ressac"] {
+        let topic = format!("{robot}/truth");
+        assert!(live_m["messages"][&topic].as_u64().unwrap() > 0, "{topic}");
+        assert!(
+            blind_m["messages"][&topic].is_null(),
+            "{topic} was withheld"
+        );
+    }
     // A SLAM parameter changed: the pilots' commands still match (they fly on the oracle),
     // the SLAM's estimate changes.
     let tuned = tmp.path().join("tuned");

@@ -147,6 +147,11 @@ enum Cmd {
         /// and its peak as the last row (`peak`).
         #[arg(long)]
         memory_trace: Option<PathBuf>,
+        /// Withhold every oracle message (true poses) from the robot software; commands are
+        /// then not checked against the recording (a pilot that steers by the oracle stands
+        /// still). The estimators' outputs must not change: they read no truth.
+        #[arg(long)]
+        withhold_truth: bool,
     },
     /// Check scenario and robot files without running anything.
     Validate {
@@ -364,6 +369,7 @@ fn real_main() -> Result<()> {
             scenario,
             duration,
             memory_trace,
+            withhold_truth,
         } => {
             let trace = exec::MemoryTrace::default();
             let files = replay::replay(&replay::ReplayArgs {
@@ -375,6 +381,7 @@ fn real_main() -> Result<()> {
                 duration,
                 quiet: false,
                 memory: memory_trace.is_some().then_some(&trace),
+                withhold_truth,
             })?;
             if let Some(path) = memory_trace {
                 exec::write_memory_trace(&path, &trace.into_inner().expect("memory trace lock"))?;

@@ -27,6 +27,8 @@ pub struct ReplayArgs<'a> {
     pub quiet: bool,
     /// Where to append (sim seconds, resident MiB) at each progress report.
     pub memory: Option<&'a crate::exec::MemoryTrace>,
+    /// Withhold every oracle message from the stacks (commands are then not checked).
+    pub withhold_truth: bool,
 }
 
 /// `key=value` settings parsed (values as TOML, bare words as strings).
@@ -186,11 +188,17 @@ pub fn replay(args: &ReplayArgs<'_>) -> Result<hetsim_eval::RunFiles> {
         crate::exec::progress_bar(&format!("replay {}", scenario.file.name))
     };
     let clock = scenario.clock;
-    let output = hetsim_engine::replay(&scenario, stacks, recording.as_mut(), |tick, total| {
-        bar.set_length(total);
-        bar.set_position(tick);
-        crate::exec::sample_memory(args.memory, clock.time_secs(tick));
-    });
+    let output = hetsim_engine::replay_withholding_truth(
+        &scenario,
+        stacks,
+        recording.as_mut(),
+        args.withhold_truth,
+        |tick, total| {
+            bar.set_length(total);
+            bar.set_position(tick);
+            crate::exec::sample_memory(args.memory, clock.time_secs(tick));
+        },
+    );
     bar.finish_and_clear();
     let output = output?;
     // The evaluation renders what it needs (a coverage mission's localization paths) where

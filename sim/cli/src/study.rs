@@ -226,6 +226,7 @@ fn whole_run(
             duration: sweep.file.duration_secs,
             quiet: true,
             memory: None,
+            withhold_truth: false,
         })
         .map_err(|e| sweep.run_error(run, format!("{e:#}")))?;
     } else if !dir.join("manifest.json").is_file() {

@@ -21,5 +21,5 @@ pub mod replay;
 mod run;
 
 pub use output::{tum_line, RobotOutcome, RunOutput};
-pub use replay::{replay, ReplayError};
+pub use replay::{replay, replay_withholding_truth, ReplayError};
 pub use run::{run, RunError, RunOptions};

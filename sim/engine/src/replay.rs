@@ -214,8 +214,21 @@ impl ReplayError {
 /// in [`crate::run`].
 pub fn replay(
     scenario: &Scenario,
+    stacks: Vec<Option<Box<dyn RobotStack>>>,
+    recording: &mut dyn Recording,
+    progress: impl FnMut(u64, u64) + Send,
+) -> Result<RunOutput, ReplayError> {
+    replay_withholding_truth(scenario, stacks, recording, false, progress)
+}
+
+/// [`replay`], with every oracle message withheld from the stacks when `withhold_truth`:
+/// commands are then not compared (a pilot that steers by the oracle stands still), and what
+/// the estimators compute must not change, for they read no truth.
+pub fn replay_withholding_truth(
+    scenario: &Scenario,
     mut stacks: Vec<Option<Box<dyn RobotStack>>>,
     recording: &mut dyn Recording,
+    withhold_truth: bool,
     mut progress: impl FnMut(u64, u64) + Send,
 ) -> Result<RunOutput, ReplayError> {
     let n = scenario.robots.len();
@@ -244,7 +257,11 @@ pub fn replay(
         scenario,
         recording,
         next,
-        oracles: oracles(scenario),
+        oracles: if withhold_truth {
+            vec![None; n]
+        } else {
+            oracles(scenario)
+        },
         lasers: laser_angles(scenario),
         truth_period: clock
             .period_ticks(scenario.file.truth_rate_hz)
@@ -270,7 +287,7 @@ pub fn replay(
     let total = clock
         .ticks_in(scenario.duration_secs)
         .min(feed.recording.ticks().unwrap_or(u64::MAX));
-    let checked = feed.recording.has_commands();
+    let checked = feed.recording.has_commands() && !withhold_truth;
     let report_every = clock.ticks_in(1.0).min(total / 100).max(1);
     let mut end = total;
     let linger = clock.ticks_in(2.0);
