@@ -39,6 +39,32 @@ pub fn hetsim_bin() -> PathBuf {
     profile_dir.join(format!("hetsim{}", std::env::consts::EXE_SUFFIX))
 }
 
+/// The release build of `hetsim`, built (or brought up to date) once per test process: for
+/// the runs too long for the test profile's optimisation (the full 600 s village). `.ci/run`
+/// builds it before the tests, so there it costs nothing.
+pub fn hetsim_release_bin() -> PathBuf {
+    static BUILD: std::sync::Once = std::sync::Once::new();
+    let exe = std::env::current_exe().expect("test executable path");
+    // target/<profile>/deps/<test> -> target/release/hetsim
+    let target = exe
+        .parent()
+        .and_then(Path::parent)
+        .and_then(Path::parent)
+        .expect("target/")
+        .to_path_buf();
+    BUILD.call_once(|| {
+        let status = Command::new(env!("CARGO"))
+            .args(["build", "-q", "--release", "-p", "hetsim-cli"])
+            .current_dir(repo())
+            .status()
+            .expect("cargo runs");
+        assert!(status.success(), "building hetsim-cli (release) failed");
+    });
+    target
+        .join("release")
+        .join(format!("hetsim{}", std::env::consts::EXE_SUFFIX))
+}
+
 /// Runs `hetsim` with arguments and extra environment, in the repository root.
 pub fn hetsim(args: &[&str], env: &[(&str, &str)]) -> Output {
     let mut cmd = Command::new(hetsim_bin());

@@ -41,7 +41,8 @@ fn num(doc: &Value, path: &Path, dotted: &str) -> Result<f64, EvalError> {
 
 /// Writes the report of the village run in `run` as the folder `out` (replaced whole,
 /// atomically): `README.md`, the run's `metrics.json` and `manifest.json`, and its Fig. 7
-/// figures. Returns `out`.
+/// figures; with several runs (seeds), their section and every run's files under `seeds/`.
+/// Returns `out`.
 pub fn village_report(runs: &[PathBuf], out: &Path) -> Result<PathBuf, EvalError> {
     let run = runs.first().ok_or_else(|| EvalError::Content {
         path: out.to_path_buf(),
@@ -122,10 +123,13 @@ pub fn village_report(runs: &[PathBuf], out: &Path) -> Result<PathBuf, EvalError
     let _ = writeln!(md, "# {scenario}: the cooperative SLAM run\n");
     let _ = writeln!(
         md,
-        "Written by `hetsim report village {}` from the run's `metrics.json` (copied here); \
-         every figure below is computed by the evaluation from the robots' published \
-         estimates against the simulator's truth.\n",
-        run.display()
+        "Written by `hetsim report village {}` from the runs' `metrics.json` (the first \
+         run's copied here, every run's under `seeds/`); every figure below is computed by the \
+         evaluation from the robots' published estimates against the simulator's truth.\n",
+        runs.iter()
+            .map(|r| r.display().to_string())
+            .collect::<Vec<_>>()
+            .join(" ")
     );
     let _ = writeln!(md, "| | |\n|---|---|");
     let seed = field(&manifest, &manifest_path, "seed")?;
@@ -337,8 +341,9 @@ pub fn village_report(runs: &[PathBuf], out: &Path) -> Result<PathBuf, EvalError
     ];
     let _ = writeln!(
         md,
-        "## Figures\n\nFig. 7 of seed 000 per robot: the top view at equal scales, and the \
-         altitude against time with the events marked.\n"
+        "## Figures\n\nThe seed paper's Fig. 7 (seed 000, the hierarchical SLAM paper) per robot, \
+         for the first run above: the top view at equal scales, and the altitude against time \
+         with the events marked.\n"
     );
     for robot in &robots {
         let name = format!("fig7-{robot}.png");
@@ -359,6 +364,7 @@ pub fn village_report(runs: &[PathBuf], out: &Path) -> Result<PathBuf, EvalError
         let (section, figures) = seeds::section(runs)?;
         md.push_str(&section);
         files.extend(figures);
+        files.extend(seeds::run_files(runs)?);
     }
     files.push(("README.md".to_string(), md.into_bytes()));
     write_dir_atomic(out, &files, |_| Ok(()))?;

@@ -106,6 +106,24 @@ impl Run {
 /// Files to write: `(name, bytes)`.
 type Files = Vec<(String, Vec<u8>)>;
 
+/// Every run's `metrics.json`, `manifest.json` and `timing.json` (where it has one), as
+/// `seeds/seed-<seed>/<file>`: the page's per-seed figures can be checked against them.
+pub fn run_files(dirs: &[PathBuf]) -> Result<Files, EvalError> {
+    let mut files = Vec::new();
+    for dir in dirs {
+        let seed = Run::read(dir)?.seed;
+        for name in ["metrics.json", "manifest.json", "timing.json"] {
+            let path = dir.join(name);
+            if name == "timing.json" && !path.exists() {
+                continue;
+            }
+            let bytes = std::fs::read(&path).map_err(hetsim_core::files::FileError::at(&path))?;
+            files.push((format!("seeds/seed-{seed}/{name}"), bytes));
+        }
+    }
+    Ok(files)
+}
+
 /// The seeds section of the page and its figures, from the runs' folders (the same scenario
 /// with different seeds).
 pub fn section(dirs: &[PathBuf]) -> Result<(String, Files), EvalError> {
