@@ -187,7 +187,11 @@ fn check(name: &str, args: &[&str], golden: PerAdapter) -> bool {
 // (issue 18): the child tracker measures in the parent's body frame (every run with a parent
 // model), and the coverage parent steers by its Monte Carlo localization instead of the truth,
 // publishing an `mcl` trajectory (lab and indoor-team). village-short did not move. Before:
-// lab 8d22a94a / 14eff2ab, indoor-team 929bd364 / d2978dd2, indoor-grid-20 cec631e6.
+// lab 8d22a94a / 14eff2ab, indoor-team 929bd364 / d2978dd2, indoor-grid-20 cec631e6. They
+// moved again with the review's fixes in the same issue: the parent takes a tick's encoder
+// reading before its scan, the operator's start pose carries a seeded error, the filter has
+// its own stream, and the tracker rotates by the heading only (before: lab f923a146 /
+// 2bc8855d, indoor-team 24e3ae5b / 3a0e9dbd, indoor-grid-20 794ac6b4).
 
 #[test]
 fn golden_lab_mission() {
@@ -198,12 +202,12 @@ fn golden_lab_mission() {
             (
                 LAVAPIPE.0,
                 LAVAPIPE.1,
-                "f923a146828ef1cf85a97113bb591e04e0c0e638472e4cfe2132066377f35e82",
+                "27347285b4345e16afe0496bf45d456e5ed69b405c452a1e0fd764c0726de6ac",
             ),
             (
                 LLVMPIPE_GL.0,
                 LLVMPIPE_GL.1,
-                "2bc8855d2563fc3786f12e912d50fe1eba6c52fd47bd592c433a75f2c4b8f020",
+                "803ab023c17fb83495176a7cf4e78784d5e4b577a045a52962a94e5a3e76f9b1",
             ),
         ],
     );
@@ -218,12 +222,12 @@ fn golden_indoor_team_mission() {
             (
                 LAVAPIPE.0,
                 LAVAPIPE.1,
-                "24e3ae5ba753c990b89b190e7bc47eff0cfad30ea2d55f8e744f8c6c56a6adde",
+                "5301415e07ec5c55d976f999572660d06b2696213ff05eac253422169330863c",
             ),
             (
                 LLVMPIPE_GL.0,
                 LLVMPIPE_GL.1,
-                "3a0e9dbd7d2e866de7f64e1af2b1eb8e738a454c71114795fec20bf8f474dd9d",
+                "3a55a8f10587346bd031fdb2ed1d68d04380fa389b2fd4b2a2cff528d59ade1c",
             ),
         ],
     );
@@ -237,7 +241,7 @@ fn golden_indoor_grid_20_without_cameras() {
         &[(
             "none",
             "none",
-            "794ac6b43657da71d68b1ad3952dbe60136a77fd4f04dd2e1b24ae1400b52557",
+            "37c3497dcab775a5398c5a4b86aa5a6344b38e4049ae293171cb550019dececc",
         )],
     ));
 }

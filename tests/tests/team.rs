@@ -124,12 +124,6 @@ fn lab_mission_images_every_reachable_vertex_with_a_stable_digest() {
         loc["heading_error_max_deg"].as_f64().unwrap() < 10.0,
         "{loc}"
     );
-    assert!(
-        m["estimates"]["mcl/parent"]["ate_unaligned_m"]
-            .as_f64()
-            .unwrap()
-            < 0.05
-    );
     // Mission time in the range of the seed's 38.4 min (our children turn faster).
     let minutes = t["mission_min"].as_f64().unwrap();
     assert!((15.0..45.0).contains(&minutes), "{minutes} min");

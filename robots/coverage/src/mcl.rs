@@ -61,7 +61,8 @@ impl Default for MclParams {
     /// Defaults for the seed's parent: a 0.5° laser with 1 cm noise on a map whose obstacles
     /// and walls stand exactly on its cell boundaries. `hit_sigma_m` is five times the range
     /// noise (the map does not know the robots, and a beam grazing a corner ends far from
-    /// where its angle says); 30 beams over 240° as ROS `amcl`'s `max_beams`. The motion
+    /// where its angle says); 31 of the 481 beams over 240°, about ROS `amcl`'s `max_beams`
+    /// of 30. The motion
     /// noise is a few times the parent's wheel slip (1 %) and encoder errors (0.5 %), so that
     /// the particles cover what the odometry gets wrong.
     fn default() -> Self {
@@ -84,6 +85,8 @@ impl Default for MclParams {
 /// Distances from points of the map to the nearest obstacle, on a regular field.
 struct LikelihoodField {
     origin: [f64; 2],
+    /// The map's width and height, metres.
+    extent: [f64; 2],
     resolution: f64,
     cols: usize,
     rows: usize,
@@ -135,6 +138,7 @@ impl LikelihoodField {
         }
         Self {
             origin: [grid.origin_x, grid.origin_y],
+            extent: [width, height],
             resolution,
             cols,
             rows,
@@ -143,11 +147,18 @@ impl LikelihoodField {
         }
     }
 
-    /// Distance from `(x, y)` to the nearest obstacle; 0 outside the map (inside the walls).
+    /// Distance from `(x, y)` to the nearest obstacle; outside the map, to the map's edge
+    /// (the walls' inner faces: a beam ending beyond them went through a wall).
     fn at(&self, x: f64, y: f64) -> f64 {
-        let c = ((x - self.origin[0]) / self.resolution).floor();
-        let r = ((y - self.origin[1]) / self.resolution).floor();
-        if c < 0.0 || r < 0.0 || c >= self.cols as f64 || r >= self.rows as f64 {
+        let (lx, ly) = (x - self.origin[0], y - self.origin[1]);
+        let out_x = (-lx).max(lx - self.extent[0]).max(0.0);
+        let out_y = (-ly).max(ly - self.extent[1]).max(0.0);
+        if out_x > 0.0 || out_y > 0.0 {
+            return out_x.hypot(out_y).min(self.cap);
+        }
+        let c = (lx / self.resolution).floor();
+        let r = (ly / self.resolution).floor();
+        if c >= self.cols as f64 || r >= self.rows as f64 {
             return 0.0;
         }
         (self.distance[r as usize * self.cols + c as usize] as f64).min(self.cap)
@@ -188,6 +199,8 @@ fn normal(rng: &mut ChaCha8Rng) -> f64 {
 pub struct Mcl {
     params: MclParams,
     field: LikelihoodField,
+    /// The map, for particles that stand where the robot cannot.
+    grid: OccupancyGrid,
     particles: Vec<Pose2>,
     weights: Vec<f64>,
     rng: ChaCha8Rng,
@@ -230,6 +243,7 @@ impl Mcl {
         let cap = 4.0 * params.hit_sigma_m;
         Self {
             field: LikelihoodField::new(grid, params.field_resolution_m, cap.max(0.2)),
+            grid: grid.clone(),
             weights: vec![1.0 / params.particles.max(1) as f64; params.particles],
             particles,
             rng,
@@ -356,6 +370,15 @@ impl Mcl {
         let two_var = 2.0 * self.params.hit_sigma_m.powi(2);
         let mut logs = Vec::with_capacity(self.particles.len());
         for p in &self.particles {
+            // A robot does not stand in an obstacle or beyond the walls.
+            let free = self
+                .grid
+                .cell_of(p[0], p[1])
+                .is_some_and(|(c, r)| self.grid.is_free(c as i64, r as i64));
+            if !free {
+                logs.push(f64::NEG_INFINITY);
+                continue;
+            }
             let laser = compose(*p, self.mount);
             let mut log = 0.0;
             for &(a, r) in &beams {
@@ -367,9 +390,15 @@ impl Mcl {
             }
             logs.push(log);
         }
+        // Log domain: the best particle's weight factor is 1, so no underflow to all zeros
+        // unless every particle stands where the robot cannot.
         let best = logs.iter().cloned().fold(f64::NEG_INFINITY, f64::max);
         for (w, l) in self.weights.iter_mut().zip(&logs) {
-            *w *= (l - best).exp();
+            *w *= if best.is_finite() {
+                (l - best).exp()
+            } else {
+                1.0
+            };
         }
         let total: f64 = self.weights.iter().sum();
         if total > 0.0 && total.is_finite() {

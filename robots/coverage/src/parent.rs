@@ -72,7 +72,7 @@ pub struct ParentParams {
     /// Unacknowledged orders are repeated this often, nanoseconds.
     pub resend_ns: u64,
     /// The laser the parent localizes with, `[x, y, yaw]` in its body frame (metres,
-    /// radians); without one it can only steer by an oracle.
+    /// radians); without one it cannot localize and stands still.
     pub laser_mount: Option<[f64; 3]>,
     /// Its laser localization.
     pub mcl: MclParams,
@@ -436,7 +436,18 @@ impl ParentStack {
     /// ([`RobotStack::step`] checks, then calls this).
     pub fn command(&mut self, now_ns: u64, inbox: &[SensorMsg]) -> Command {
         self.now_ns = now_ns;
-        for msg in inbox {
+        // In stamp order, and at one stamp the encoders before the laser before the rest:
+        // the filter moves its particles up to the scan's time before it weighs them, and
+        // tracks are placed by the pose at their own time (sensors reach the inbox in the
+        // robot file's order, the laser first).
+        let rank = |m: &SensorMsg| match m {
+            SensorMsg::WheelOdometry(_) => 0,
+            SensorMsg::LaserScan(_) => 1,
+            _ => 2,
+        };
+        let mut order: Vec<&SensorMsg> = inbox.iter().collect();
+        order.sort_by_key(|m| (m.stamp_ns(), rank(m)));
+        for msg in order {
             match msg {
                 SensorMsg::WheelOdometry(o) => {
                     if let Some(m) = self.localizer.as_mut() {

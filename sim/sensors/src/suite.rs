@@ -428,16 +428,17 @@ impl SensorSuite {
                     }
                     let magnitude = error.sample(&mut s.rng).abs();
                     let angle = s.rng.random_range(0.0..std::f64::consts::TAU);
-                    // The measured floor position, in the parent's body frame.
-                    let seen = Vector3::new(
-                        p.x + magnitude * angle.cos(),
-                        p.y + magnitude * angle.sin(),
-                        world_from_body.translation.vector.z,
+                    // The measured floor position, in the parent's body frame (its heading
+                    // only: the floor position of a child, however the body tilts).
+                    let here = world_from_body.translation.vector;
+                    let (dx, dy) = (
+                        p.x + magnitude * angle.cos() - here.x,
+                        p.y + magnitude * angle.sin() - here.y,
                     );
-                    let local = world_from_body.inverse_transform_point(&seen.into());
+                    let (sin, cos) = yaw_of(&world_from_body).sin_cos();
                     tracks.push(Track {
                         child: names[other].clone(),
-                        position_m: [local.x, local.y],
+                        position_m: [cos * dx + sin * dy, -sin * dx + cos * dy],
                     });
                 }
                 vec![SensorMsg::ChildTracks(ChildTracks {

@@ -86,7 +86,7 @@ pub fn build_stack(
     seed: u64,
     open_loop: bool,
 ) -> Box<dyn RobotStack> {
-    let pilot = build_pilot(scenario, robot, seed);
+    let pilot = build_pilot(scenario, robot);
     let stereo = stereo_bench(robot);
     match stereo {
         Some(StereoBench {
@@ -164,11 +164,11 @@ fn tune(params: &mut hetsim_slam::stack::SlamParams, t: &hetsim_scene::SlamTunin
     }
 }
 
-fn build_pilot(scenario: &Scenario, robot: &ResolvedRobot, seed: u64) -> Box<dyn RobotStack> {
+fn build_pilot(scenario: &Scenario, robot: &ResolvedRobot) -> Box<dyn RobotStack> {
     let model = &robot.model;
     let pilot = &model.pilot;
     let mission = mission(scenario, &robot.spec.mission);
-    if let Some(stack) = coverage_stack(robot, &mission, seed) {
+    if let Some(stack) = coverage_stack(scenario, robot, &mission) {
         return stack;
     }
     match model.body.drive {
@@ -230,14 +230,17 @@ fn ground_params(robot: &ResolvedRobot) -> GroundPilotParams {
 
 /// The coverage mission's stacks (seed 002): the parent and its teleoperated children.
 fn coverage_stack(
+    scenario: &Scenario,
     robot: &ResolvedRobot,
     mission: &Mission,
-    seed: u64,
 ) -> Option<Box<dyn RobotStack>> {
     match mission {
         Mission::CoverageParent(_) => {
             let mut params = hetsim_coverage::ParentParams::with_pilot(ground_params(robot));
-            params.seed = seed;
+            // The localization's random numbers: the stream `<robot>/mcl`.
+            params.seed = rand::Rng::next_u64(
+                &mut Streams::new(scenario.seed).stream(&format!("{}/mcl", robot.spec.name)),
+            );
             // The laser the parent localizes with: its first, as mounted (planar: x, y, yaw).
             params.laser_mount = robot.model.sensors.iter().find_map(|s| match s {
                 Sensor::Laser { mount, .. } => Some([
@@ -310,13 +313,7 @@ fn mission(scenario: &Scenario, spec: &MissionSpec) -> Mission {
                     .robots
                     .iter()
                     .find(|r| matches!(r.spec.mission, MissionSpec::CoverageParent))
-                    .map_or([0.0; 3], |r| {
-                        [
-                            r.spec.start.x,
-                            r.spec.start.y,
-                            r.spec.start.yaw_deg.to_radians(),
-                        ]
-                    });
+                    .map_or([0.0; 3], |r| operator_start(scenario, r));
                 let child_speed_mps = scenario
                     .robots
                     .iter()
@@ -354,6 +351,28 @@ fn mission(scenario: &Scenario, spec: &MissionSpec) -> Mission {
             None => Mission::Idle,
         },
     }
+}
+
+/// The start pose an operator gives a robot that localizes against a map (as one sets a ROS
+/// `amcl` initial pose, by eye on a marked spot): the scenario's start, off by a seeded error
+/// of σ 0.05 m on x and y and 2° on the heading (stream `<robot>/operator_start`), so that
+/// the localization's prior is not centred on the truth.
+fn operator_start(scenario: &Scenario, robot: &ResolvedRobot) -> [f64; 3] {
+    use rand::RngExt;
+    let mut rng =
+        Streams::new(scenario.seed).stream(&format!("{}/operator_start", robot.spec.name));
+    let mut normal = || {
+        // Box-Muller.
+        let u1: f64 = rng.random_range(1e-12..1.0);
+        let u2: f64 = rng.random_range(0.0..1.0);
+        (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
+    };
+    let s = &robot.spec.start;
+    [
+        s.x + 0.05 * normal(),
+        s.y + 0.05 * normal(),
+        (s.yaw_deg + 2.0 * normal()).to_radians(),
+    ]
 }
 
 /// Planning parameters from the scenario's `[coverage]` table and its robots.

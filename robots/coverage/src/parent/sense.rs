@@ -6,7 +6,7 @@ use hetsim_msgs::{pose_from_xyz_rpy, yaw_of, ChildTracks};
 
 impl ParentStack {
     /// Takes the laser localization's pose as the one to steer by, and keeps the estimate
-    /// of each filter update (and the first).
+    /// of each filter update.
     pub(super) fn localized(&mut self, stamp_ns: u64, updated: bool) {
         let Some(m) = self.localizer.as_ref() else {
             return;
@@ -14,7 +14,7 @@ impl ParentStack {
         let [x, y, h] = m.pose();
         let pose = pose_from_xyz_rpy([x, y, 0.0], [0.0, 0.0, h]);
         self.pose = Some(pose);
-        if updated || self.estimates.is_empty() {
+        if updated {
             self.estimates.push((stamp_ns, pose));
         }
     }
@@ -24,11 +24,14 @@ impl ParentStack {
         let Some(pose) = self.pose else {
             return;
         };
-        let (s, c) = yaw_of(&pose).sin_cos();
+        let (sin, cos) = yaw_of(&pose).sin_cos();
         let origin = pose.translation.vector;
         for track in &t.tracks {
             let [lx, ly] = track.position_m;
-            let position_m = [origin.x + c * lx - s * ly, origin.y + s * lx + c * ly];
+            let position_m = [
+                origin.x + cos * lx - sin * ly,
+                origin.y + sin * lx + cos * ly,
+            ];
             let Some(i) = self.children.iter().position(|c| c.name == track.child) else {
                 continue;
             };
