@@ -221,6 +221,33 @@ fn the_tracker_sees_children_within_2_m_only_in_line_of_sight() {
     assert!((sd - 0.0195).abs() < 0.001, "error std {sd}");
 }
 
+/// The tracker's fixes turn with the parent: facing north, a child 1.5 m to its east is
+/// 1.5 m to its right (body y = -1.5).
+#[test]
+fn the_tracker_measures_in_the_parents_body_frame() {
+    let robots = "[[robots]]\nname = \"p\"\nmodel = \"parent\"\nstart = { x = -2.75, y = 0.25, yaw_deg = 90.0 }\nmission = { kind = \"idle\" }\n[[robots]]\nname = \"near\"\nmodel = \"ctbot\"\nstart = { x = -1.25, y = 0.25 }\nmission = { kind = \"idle\" }\n";
+    let s = scenario(ROOM, robots);
+    let mut sum = [0.0; 2];
+    let mut n = 0.0;
+    for m in sample_still(&s, 20_000) {
+        if let SensorMsg::ChildTracks(t) = m {
+            for k in &t.tracks {
+                sum[0] += k.position_m[0];
+                sum[1] += k.position_m[1];
+                n += 1.0;
+            }
+        }
+    }
+    assert!(n > 1000.0, "{n} fixes");
+    // The error's direction is uniform, so the mean fix is the true position to within
+    // 0.04 m / sqrt(n).
+    let mean = [sum[0] / n, sum[1] / n];
+    assert!(
+        mean[0].abs() < 0.01 && (mean[1] + 1.5).abs() < 0.01,
+        "{mean:?}"
+    );
+}
+
 #[test]
 fn rendezvous_fires_only_with_line_of_sight() {
     let robots = "[[robots]]\nname = \"d\"\nmodel = \"dala\"\nstart = { x = -1.5, y = 0.0 }\nmission = { kind = \"idle\" }\n[[robots]]\nname = \"r\"\nmodel = \"ressac\"\nstart = { x = 3.0, y = 0.0, z = 25.0 }\nmission = { kind = \"idle\" }\n";
