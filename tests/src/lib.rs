@@ -11,20 +11,20 @@ pub fn repo() -> PathBuf {
         .to_path_buf()
 }
 
-/// The `hetsim` binary of this build. It is built (or brought up to date) once per test
-/// process: `cargo test -p hetsim-tests` alone does not build other packages' binaries, and
-/// a stale binary would test old code.
-pub fn hetsim_bin() -> PathBuf {
-    static BUILD: std::sync::Once = std::sync::Once::new();
+/// `hetsim` of the `release` profile or of the test's own, built (or brought up to date) at
+/// most once per profile and test process: `cargo test -p hetsim-tests` alone does not build
+/// other packages' binaries, and a stale binary would test old code.
+fn built_hetsim(release: bool) -> PathBuf {
+    static BUILD: [std::sync::Once; 2] = [std::sync::Once::new(), std::sync::Once::new()];
     let exe = std::env::current_exe().expect("test executable path");
-    // target/<profile>/deps/<test> -> target/<profile>/hetsim
+    // target/<profile>/deps/<test> -> target/<profile>
     let profile_dir = exe
         .parent()
         .and_then(Path::parent)
         .expect("target/<profile>")
         .to_path_buf();
-    BUILD.call_once(|| {
-        let release = profile_dir.file_name().is_some_and(|n| n == "release");
+    let release = release || profile_dir.file_name().is_some_and(|n| n == "release");
+    BUILD[release as usize].call_once(|| {
         let mut cmd = Command::new(env!("CARGO"));
         cmd.args(["build", "-q", "-p", "hetsim-cli"])
             .current_dir(repo());
@@ -36,33 +36,23 @@ pub fn hetsim_bin() -> PathBuf {
             "building hetsim-cli failed"
         );
     });
-    profile_dir.join(format!("hetsim{}", std::env::consts::EXE_SUFFIX))
+    let dir = if release {
+        profile_dir.with_file_name("release")
+    } else {
+        profile_dir
+    };
+    dir.join(format!("hetsim{}", std::env::consts::EXE_SUFFIX))
 }
 
-/// The release build of `hetsim`, built (or brought up to date) once per test process: for
-/// the runs too long for the test profile's optimisation (the full 600 s village). `.ci/run`
-/// builds it before the tests, so there it costs nothing.
+/// The `hetsim` binary of this build.
+pub fn hetsim_bin() -> PathBuf {
+    built_hetsim(false)
+}
+
+/// The release build of `hetsim`: for the runs too long for the test profile's optimisation
+/// (the full 600 s village). `.ci/run` builds it before the tests, so there it costs nothing.
 pub fn hetsim_release_bin() -> PathBuf {
-    static BUILD: std::sync::Once = std::sync::Once::new();
-    let exe = std::env::current_exe().expect("test executable path");
-    // target/<profile>/deps/<test> -> target/release/hetsim
-    let target = exe
-        .parent()
-        .and_then(Path::parent)
-        .and_then(Path::parent)
-        .expect("target/")
-        .to_path_buf();
-    BUILD.call_once(|| {
-        let status = Command::new(env!("CARGO"))
-            .args(["build", "-q", "--release", "-p", "hetsim-cli"])
-            .current_dir(repo())
-            .status()
-            .expect("cargo runs");
-        assert!(status.success(), "building hetsim-cli (release) failed");
-    });
-    target
-        .join("release")
-        .join(format!("hetsim{}", std::env::consts::EXE_SUFFIX))
+    built_hetsim(true)
 }
 
 /// Runs `hetsim` with arguments and extra environment, in the repository root.

@@ -24,6 +24,7 @@ pub mod mcl;
 pub mod parent;
 pub mod report;
 pub mod roadmap;
+mod sampling;
 pub mod select;
 pub mod team;
 pub mod validate;

@@ -22,6 +22,8 @@ use hetsim_vision::appearance::{Feature, Features};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
+use crate::sampling::{normal, systematic};
+
 /// A database image: where it was taken and its features.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Place {
@@ -74,13 +76,6 @@ pub struct ParticleFilter {
     particles: Vec<[f64; 2]>,
     weights: Vec<f64>,
     rng: ChaCha8Rng,
-}
-
-fn normal(rng: &mut ChaCha8Rng) -> f64 {
-    // Box-Muller.
-    let u1: f64 = rng.random_range(1e-12..1.0);
-    let u2: f64 = rng.random_range(0.0..1.0);
-    (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
 }
 
 impl ParticleFilter {
@@ -177,26 +172,17 @@ impl ParticleFilter {
 
     fn resample(&mut self) {
         let n = self.particles.len();
-        let step = 1.0 / n as f64;
-        let mut u = self.rng.random_range(0.0..step);
-        let mut cumulative = self.weights[0];
-        let mut i = 0;
+        let j = self.params.jitter_m;
         let mut out = Vec::with_capacity(n);
-        for _ in 0..n {
-            while u > cumulative && i + 1 < n {
-                i += 1;
-                cumulative += self.weights[i];
-            }
+        for i in systematic(&self.weights, &mut self.rng) {
             let p = self.particles[i];
-            let j = self.params.jitter_m;
             out.push([
                 p[0] + j * normal(&mut self.rng),
                 p[1] + j * normal(&mut self.rng),
             ]);
-            u += step;
         }
         self.particles = out;
-        self.weights = vec![step; n];
+        self.weights = vec![1.0 / n as f64; n];
     }
 
     /// The weighted mean position.

@@ -23,8 +23,10 @@
 //!   ROS navigation stack), so the pilot gets a pose at the encoders' rate.
 
 use hetsim_msgs::{LaserScan, OccupancyGrid};
-use rand::{RngExt, SeedableRng};
+use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
+
+use crate::sampling::{normal, systematic};
 
 /// A planar pose `[x, y, heading]`, metres and radians.
 pub type Pose2 = [f64; 3];
@@ -186,13 +188,6 @@ fn compose(a: Pose2, b: Pose2) -> Pose2 {
 fn inverse(a: Pose2) -> Pose2 {
     let (s, c) = a[2].sin_cos();
     [-c * a[0] - s * a[1], s * a[0] - c * a[1], wrap(-a[2])]
-}
-
-fn normal(rng: &mut ChaCha8Rng) -> f64 {
-    // Box-Muller.
-    let u1: f64 = rng.random_range(1e-12..1.0);
-    let u2: f64 = rng.random_range(0.0..1.0);
-    (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
 }
 
 /// The parent's laser localizer.
@@ -420,24 +415,14 @@ impl Mcl {
         [x, y, s.atan2(c)]
     }
 
-    /// Systematic (low-variance) resampling, Table 4.4.
+    /// Systematic (low-variance) resampling.
     fn resample(&mut self) {
         let n = self.particles.len();
-        let step = 1.0 / n as f64;
-        let mut u = self.rng.random_range(0.0..step);
-        let mut cumulative = self.weights[0];
-        let mut i = 0;
-        let mut next = Vec::with_capacity(n);
-        for _ in 0..n {
-            while u > cumulative && i + 1 < n {
-                i += 1;
-                cumulative += self.weights[i];
-            }
-            next.push(self.particles[i]);
-            u += step;
-        }
-        self.particles = next;
-        self.weights = vec![step; n];
+        self.particles = systematic(&self.weights, &mut self.rng)
+            .into_iter()
+            .map(|i| self.particles[i])
+            .collect();
+        self.weights = vec![1.0 / n as f64; n];
         self.resamples += 1;
     }
 }

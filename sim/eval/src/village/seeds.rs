@@ -111,7 +111,8 @@ type Files = Vec<(String, Vec<u8>)>;
 pub fn run_files(dirs: &[PathBuf]) -> Result<Files, EvalError> {
     let mut files = Vec::new();
     for dir in dirs {
-        let seed = Run::read(dir)?.seed;
+        let manifest = read_json(dir, "manifest.json")?;
+        let seed = field(&manifest, &dir.join("manifest.json"), "seed")?.to_string();
         for name in ["metrics.json", "manifest.json", "timing.json"] {
             let path = dir.join(name);
             if name == "timing.json" && !path.exists() {
