@@ -20,7 +20,7 @@ use hetsim_render::{
     mount_to_optical, AdapterSummary, CameraView, Intrinsics, RenderError, RenderOptions, Renderer,
     RobotDraw, RobotPart,
 };
-use hetsim_scene::{DriveKind, Scenario, Sensor};
+use hetsim_scene::{DriveKind, Scenario, Sensor, HAT_SCALE, HAT_THICKNESS_M};
 use nalgebra::Isometry3;
 use rayon::prelude::*;
 
@@ -31,10 +31,12 @@ enum Model {
         distortion: Option<[f64; 2]>,
         render: Intrinsics,
     },
-    /// The panorama's pixels: (cube face, face u, face v, range / depth), computed once.
+    /// The panorama's pixels, computed once: where each reads the rendered cube faces, and
+    /// which faces (indices into `CUBE`) those are.
     Omni {
         face: Intrinsics,
-        lookup: Vec<(u8, f32, f32, f32)>,
+        taps: Vec<optics::Tap>,
+        faces: Vec<usize>,
     },
 }
 
@@ -111,8 +113,8 @@ fn robot_parts(model: &hetsim_scene::RobotModel) -> Vec<RobotPart> {
                 hat: false,
             },
             RobotPart {
-                centre: [0.0, 0.0, 2.0 * h + 0.012],
-                half_extents: [l * 0.9, w * 0.9, 0.012],
+                centre: [0.0, 0.0, 2.0 * h + HAT_THICKNESS_M / 2.0],
+                half_extents: [l * HAT_SCALE, w * HAT_SCALE, HAT_THICKNESS_M / 2.0],
                 hat: true,
             },
         ],
@@ -245,15 +247,14 @@ impl Cameras {
                             gain: 1.0,
                             model: {
                                 let face = Intrinsics::from_hfov(face_px, face_px, 90.0);
-                                Model::Omni {
-                                    lookup: panorama_lookup(
-                                        &face,
-                                        *width_px,
-                                        *height_px,
-                                        elevation_deg.map(f64::to_radians),
-                                    ),
-                                    face,
-                                }
+                                let lookup = panorama_lookup(
+                                    &face,
+                                    *width_px,
+                                    *height_px,
+                                    elevation_deg.map(f64::to_radians),
+                                );
+                                let (taps, faces) = panorama_taps(&face, &lookup);
+                                Model::Omni { face, taps, faces }
                             },
                         });
                     }
@@ -348,8 +349,8 @@ impl Cameras {
                     depth: with_depth,
                     lod_from,
                 }),
-                Model::Omni { face, .. } => {
-                    for (yaw, pitch) in CUBE {
+                Model::Omni { face, faces, .. } => {
+                    for (yaw, pitch) in faces.iter().map(|&f| CUBE[f]) {
                         let face_mount =
                             world_from_mount * pose_from_xyz_rpy([0.0; 3], [0.0, pitch, yaw]);
                         views.push(CameraView {
@@ -414,14 +415,16 @@ impl Rig {
                 resampled = rgb;
                 (&resampled, 3, depth)
             }
-            Model::Omni { lookup, .. } => {
-                let (rgb, depth) = panorama(frames, lookup);
+            Model::Omni { taps, .. } => {
+                let (rgb, depth) = panorama(frames, taps);
                 resampled = rgb;
                 (&resampled, 3, depth)
             }
         };
         let rgb = match &self.noise {
             Some(noise) => noise.apply(src, stride, self.gain, &mut self.rng),
+            // Unit gain, no noise: the RGB as it is.
+            None if stride == 3 && self.gain == 1.0 => src.clone(),
             None => src
                 .chunks_exact(stride)
                 .flat_map(|px| {
@@ -483,7 +486,7 @@ mod noise;
 use noise::PixelNoise;
 
 mod optics;
-use optics::{distort, panorama, panorama_lookup, pinhole, CUBE};
+use optics::{distort, panorama, panorama_lookup, panorama_taps, pinhole, CUBE};
 
 #[cfg(test)]
 mod tests;

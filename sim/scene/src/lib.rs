@@ -22,7 +22,7 @@ pub use load::{
 };
 pub use robot::{
     Body, DriveKind, Helicopter, Intrinsics, Mount, Pilot, RobotModel, Sensor, SlamTuning,
-    SteeringKind, Wheels,
+    SteeringKind, Wheels, HAT_SCALE, HAT_THICKNESS_M,
 };
 pub use scenario::{
     BoxSpec, CommsSpec, CoverageSpec, IndoorSpec, MissionSpec, RobotSpec, ScenarioFile, Start,

@@ -46,6 +46,12 @@ pub enum DriveKind {
     Helicopter,
 }
 
+/// The hat's thickness, metres: its top is this far above the body's top (`height_m`).
+pub const HAT_THICKNESS_M: f64 = 0.024;
+
+/// The hat's length and width as fractions of the body's.
+pub const HAT_SCALE: f64 = 0.9;
+
 /// Shape, mass and drive limits.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -71,7 +77,8 @@ pub struct Body {
     #[serde(default)]
     pub helicopter: Option<Helicopter>,
     /// Wears the orange hat that a parent's child tracker follows (seed 002's c't-Bots): the
-    /// renderer draws it on top of the body.
+    /// renderer draws it on top of the body, [`HAT_THICKNESS_M`] thick and [`HAT_SCALE`] of its
+    /// footprint.
     #[serde(default)]
     pub hat: bool,
 }

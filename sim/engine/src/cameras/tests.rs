@@ -83,3 +83,47 @@ fn panorama_centre_column_looks_forward_and_the_top_row_up() {
     // Top row: looking up, face 4.
     assert_eq!(lookup[180].0, 4);
 }
+
+#[test]
+fn the_panorama_in_fixed_point_is_the_exact_bilinear_within_a_level_and_a_half_and_skips_the_top_face(
+) {
+    let face = Intrinsics::from_hfov(64, 64, 90.0);
+    let lookup = panorama_lookup(&face, 256, 128, [-75f64.to_radians(), 15f64.to_radians()]);
+    let (taps, faces) = panorama_taps(&face, &lookup);
+    // Elevations up to 15 degrees never reach the upward face (4): five faces are rendered.
+    assert_eq!(faces, vec![0, 1, 2, 3, 5]);
+    // Faces of pseudo-random colours (a different pattern per face).
+    let frames: Vec<Frame> = faces
+        .iter()
+        .map(|&f| {
+            let rgba = (0..64 * 64 * 4)
+                .map(|k: usize| ((k * 2654435761 + f * 97) >> 7) as u8)
+                .collect();
+            Frame {
+                width: 64,
+                height: 64,
+                rgba,
+                depth_m: Some(vec![2.0; 64 * 64]),
+            }
+        })
+        .collect();
+    let (rgb, depth) = panorama(&frames, &taps);
+    let mut all = [None; 6];
+    for (k, &f) in faces.iter().enumerate() {
+        all[f] = Some(&frames[k]);
+    }
+    for (i, &(f, u, v, scale)) in lookup.iter().enumerate() {
+        let (exact, _) = optics::bilinear(all[f as usize].unwrap(), u as f64, v as f64).unwrap();
+        // Weights in 1/256ths (each off by at most 1/512, on two axes, of a step of at most
+        // 255 levels) and the final rounding (half a level): 1.5 levels at most.
+        for ch in 0..3 {
+            let got = rgb[i * 3 + ch] as f64;
+            assert!(
+                (got - exact[ch]).abs() <= 1.5,
+                "pixel {i} channel {ch}: {got} against {:.2}",
+                exact[ch]
+            );
+        }
+        assert!((depth.as_ref().unwrap()[i] - 2.0 * scale).abs() < 1e-6);
+    }
+}
