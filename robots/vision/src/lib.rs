@@ -3,6 +3,8 @@
 //!
 //! * [`appearance`]: global image features (WGOH, 15 x 11 thumbnails) for the children's
 //!   appearance-based localization (seed 002);
+//! * [`hats`]: the parent's hat tracker on its omnidirectional panorama (seed 002): orange
+//!   blobs, and the children's floor positions from their bearing and elevation;
 //! * [`harris`]: Harris interest points, and the seed's heuristic of a regular 3 x 3
 //!   partition of the image with at least two tracked landmarks per region;
 //! * [`matching`]: zero-mean normalized cross-correlation (ZNCC) of patches, searched inside a
@@ -20,6 +22,7 @@
 
 pub mod appearance;
 pub mod harris;
+pub mod hats;
 pub mod image;
 pub mod matching;
 pub mod place;

@@ -1,0 +1,203 @@
+//! The parent's hat tracker (seed 002, Section V.B): the children wear orange hats, and the
+//! parent finds them in its omnidirectional camera's panorama "by colour segmentation and blob
+//! tracking", then places each child on the floor from the hat's bearing and elevation and
+//! the camera's height.
+//!
+//! Decisions:
+//! * **Panorama model** (the camera's calibration, as the robot file gives it): column `u`
+//!   looks at azimuth `φ = π - 2π (u + 0.5) / W` in the camera's mount frame (the centre
+//!   column along its x axis, the left half to its left) and row `v` at elevation
+//!   `θ = θmax - (θmax - θmin)(v + 0.5) / H`.
+//! * **Segmentation.** A pixel is orange when red is its largest channel, its saturation
+//!   `(max - min) / max` is above 0.5, its hue `60° (G - B) / (max - min)` is within 20-50°
+//!   and its value above 100 of 255. The hats are the only such surfaces in the worlds: the
+//!   rendered hat is about 35° of hue at saturation 0.7-0.75, lit or in shade, and nothing
+//!   else in the lab's panoramas passes.
+//! * **Blobs.** 8-connected, across the panorama's seam, of at least [`HatFinder::min_pixels`]
+//!   pixels (a hat 2 m away covers about 90). Only rows below the horizon are searched: the
+//!   hats are below the camera.
+//! * **Position.** The hat's top is at a known height, so each pixel's ray meets its plane
+//!   at floor distance `(h_camera - h_hat) / tan(-θ)`. The child's position is the centroid
+//!   of the blob on that plane: each pixel's point weighted by the area its ray covers
+//!   there, `cos θ / sin³(-θ)` (the pixel's solid angle over the plane's slant). A plain
+//!   mean of pixels, or of their rows, leans towards the camera: nearer parts of the hat
+//!   cover more pixels. The blob also holds the hat's near sides, a little lower than its
+//!   top, which pulls the estimate a few millimetres towards the camera.
+//! * **Whole hats only.** The same weights sum to the blob's area on the hat's plane. A
+//!   whole hat measures its top's area plus a little of its sides (1.0-1.15 times the top
+//!   in the lab's panoramas); a hat partly hidden behind furniture measures less, and its
+//!   centroid is pulled towards the visible part (a lab child's hat cut by a desk's edge
+//!   put it 0.18 m off, and the child into a shelf). Blobs below 0.8 or above 1.6 times
+//!   the hat's top area (two hats run together) are not hats to place a child by.
+//! * **What it cannot do.** It does not tell one child's hat from another (they are the
+//!   same colour); the caller assigns blobs to children by where it expects them. A hat
+//!   hidden by furniture or another robot is simply not in the image, and a hat cut in two
+//!   by a thin occluder gives two blobs.
+
+use hetsim_msgs::{Image, PixelEncoding};
+
+/// The equirectangular panorama's geometry.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Panorama {
+    /// Width, pixels.
+    pub width: u32,
+    /// Height, pixels.
+    pub height: u32,
+    /// Elevations of the bottom and top edges, radians.
+    pub elevation_rad: [f64; 2],
+}
+
+impl Panorama {
+    /// Azimuth of (fractional) column `u`, radians.
+    pub fn azimuth(&self, u: f64) -> f64 {
+        std::f64::consts::PI - std::f64::consts::TAU * (u + 0.5) / self.width as f64
+    }
+
+    /// Elevation of (fractional) row `v`, radians.
+    pub fn elevation(&self, v: f64) -> f64 {
+        let [lo, hi] = self.elevation_rad;
+        hi - (hi - lo) * (v + 0.5) / self.height as f64
+    }
+
+    /// The (fractional) column of azimuth `az` and row of elevation `el` (inverse of
+    /// [`Self::azimuth`] and [`Self::elevation`]).
+    pub fn pixel(&self, az: f64, el: f64) -> (f64, f64) {
+        let [lo, hi] = self.elevation_rad;
+        let u = (std::f64::consts::PI - az).rem_euclid(std::f64::consts::TAU)
+            / std::f64::consts::TAU
+            * self.width as f64
+            - 0.5;
+        let v = (hi - el) / (hi - lo) * self.height as f64 - 0.5;
+        (u, v)
+    }
+}
+
+/// One hat found in a panorama.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Hat {
+    /// Bearing of the position in the camera's mount frame, radians.
+    pub azimuth_rad: f64,
+    /// Elevation of the hat's top there, radians (negative: below the camera).
+    pub elevation_rad: f64,
+    /// Pixels in the blob.
+    pub pixels: usize,
+    /// The child's floor position in the mount frame (x forward, y left), metres: from the
+    /// camera's foot.
+    pub position_m: [f64; 2],
+    /// The blob's area on the hat's plane, square metres.
+    pub area_m2: f64,
+}
+
+/// Finds the orange hats in a panorama.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct HatFinder {
+    /// The camera's panorama.
+    pub panorama: Panorama,
+    /// Height of the camera above the floor, metres.
+    pub camera_height_m: f64,
+    /// Height of the hats' top above the floor, metres.
+    pub hat_height_m: f64,
+    /// The smallest blob taken as a hat, pixels.
+    pub min_pixels: usize,
+    /// The area of a hat's top, square metres: blobs outside 0.8-1.6 times it are dropped
+    /// (see the module's decisions).
+    pub hat_area_m2: f64,
+}
+
+/// Whether an RGB pixel is hat orange (see the module's decisions).
+pub fn is_orange([r, g, b]: [u8; 3]) -> bool {
+    let (r, g, b) = (r as i32, g as i32, b as i32);
+    let (max, min) = (r.max(g).max(b), r.min(g).min(b));
+    if r != max || max <= 100 || 2 * (max - min) <= max {
+        return false;
+    }
+    // Hue 20-50°: 60 (g - b) / (max - min) in (20, 50), kept in integers.
+    let (num, den) = (60 * (g - b), max - min);
+    num > 20 * den && num < 50 * den
+}
+
+impl HatFinder {
+    /// The hats in `image` (an RGB panorama of this finder's size), largest blob first; an
+    /// image of another size or encoding has none.
+    pub fn find(&self, image: &Image) -> Vec<Hat> {
+        let p = &self.panorama;
+        if image.encoding != PixelEncoding::Rgb8
+            || image.width != p.width
+            || image.height != p.height
+        {
+            return Vec::new();
+        }
+        let (w, h) = (p.width as usize, p.height as usize);
+        // Rows below the horizon (and below the hat's own height at any distance).
+        let drop = self.camera_height_m - self.hat_height_m;
+        if drop <= 0.0 {
+            return Vec::new();
+        }
+        let first = (0..h).find(|&v| p.elevation(v as f64) < 0.0).unwrap_or(h);
+        // A pixel's angular size (azimuth step times elevation step), radians squared.
+        let pixel =
+            std::f64::consts::TAU / w as f64 * (p.elevation_rad[1] - p.elevation_rad[0]) / h as f64;
+        let orange = |u: usize, v: usize| {
+            let k = (v * w + u) * 3;
+            is_orange([image.data[k], image.data[k + 1], image.data[k + 2]])
+        };
+        let mut seen = vec![false; w * h];
+        let mut hats = Vec::new();
+        let mut stack = Vec::new();
+        for v0 in first..h {
+            for u0 in 0..w {
+                if seen[v0 * w + u0] || !orange(u0, v0) {
+                    continue;
+                }
+                seen[v0 * w + u0] = true;
+                stack.push((u0, v0));
+                let (mut n, mut sum, mut weight) = (0usize, [0.0; 2], 0.0);
+                while let Some((u, v)) = stack.pop() {
+                    n += 1;
+                    let (az, el) = (p.azimuth(u as f64), p.elevation(v as f64));
+                    let range = drop / (-el).tan();
+                    let area = el.cos() / (-el).sin().powi(3);
+                    sum[0] += area * range * az.cos();
+                    sum[1] += area * range * az.sin();
+                    weight += area;
+                    for dv in [-1i64, 0, 1] {
+                        let vv = v as i64 + dv;
+                        if vv < first as i64 || vv >= h as i64 {
+                            continue;
+                        }
+                        for du in [w - 1, 0, 1] {
+                            // Columns wrap: the panorama's seam is not an edge.
+                            let uu = (u + du) % w;
+                            let k = vv as usize * w + uu;
+                            if !seen[k] && orange(uu, vv as usize) {
+                                seen[k] = true;
+                                stack.push((uu, vv as usize));
+                            }
+                        }
+                    }
+                }
+                if n < self.min_pixels {
+                    continue;
+                }
+                let area_m2 = weight * pixel * drop * drop;
+                if !(0.8 * self.hat_area_m2..=1.6 * self.hat_area_m2).contains(&area_m2) {
+                    continue;
+                }
+                let position_m = [sum[0] / weight, sum[1] / weight];
+                let range = position_m[0].hypot(position_m[1]);
+                hats.push(Hat {
+                    azimuth_rad: position_m[1].atan2(position_m[0]),
+                    elevation_rad: -drop.atan2(range),
+                    pixels: n,
+                    position_m,
+                    area_m2,
+                });
+            }
+        }
+        hats.sort_by_key(|h| std::cmp::Reverse(h.pixels));
+        hats
+    }
+}
+
+#[cfg(test)]
+mod tests;

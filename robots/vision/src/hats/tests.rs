@@ -1,0 +1,180 @@
+//! The hat finder on panoramas drawn by exact ray casting: a grey floor and flat orange
+//! squares (the hats' tops) at a known height.
+
+use super::*;
+
+const CAMERA_M: f64 = 1.45;
+const HAT_M: f64 = 0.124;
+/// The lab children's hat: 0.9 of a 0.12 m body.
+const HAT_SIDE_M: f64 = 0.108;
+
+fn finder() -> HatFinder {
+    HatFinder {
+        panorama: Panorama {
+            width: 780,
+            height: 580,
+            elevation_rad: [(-75f64).to_radians(), 15f64.to_radians()],
+        },
+        camera_height_m: CAMERA_M,
+        hat_height_m: HAT_M,
+        min_pixels: 4,
+        hat_area_m2: HAT_SIDE_M * HAT_SIDE_M,
+    }
+}
+
+/// A panorama of hats centred at `centres` (mount frame, metres), axis-aligned squares.
+fn draw(f: &HatFinder, centres: &[[f64; 2]]) -> Image {
+    let p = f.panorama;
+    let mut data = Vec::with_capacity((p.width * p.height * 3) as usize);
+    for v in 0..p.height {
+        let el = p.elevation(v as f64);
+        for u in 0..p.width {
+            let az = p.azimuth(u as f64);
+            let hit = el < 0.0 && {
+                let range = (CAMERA_M - HAT_M) / (-el).tan();
+                let (x, y) = (range * az.cos(), range * az.sin());
+                centres.iter().any(|c| {
+                    (x - c[0]).abs() <= HAT_SIDE_M / 2.0 && (y - c[1]).abs() <= HAT_SIDE_M / 2.0
+                })
+            };
+            data.extend_from_slice(if hit {
+                &[246, 171, 64]
+            } else {
+                &[120, 118, 112]
+            });
+        }
+    }
+    Image {
+        stamp_ns: 0,
+        sensor: "omni".into(),
+        width: p.width,
+        height: p.height,
+        encoding: PixelEncoding::Rgb8,
+        data,
+    }
+}
+
+/// One row's step in floor range at `range`: the resolution the centroid improves on.
+fn row_footprint_m(f: &HatFinder, range: f64) -> f64 {
+    let p = f.panorama;
+    let step = (p.elevation_rad[1] - p.elevation_rad[0]) / p.height as f64;
+    let el = ((CAMERA_M - HAT_M) / range).atan();
+    (CAMERA_M - HAT_M) / (el - step).tan() - range
+}
+
+#[test]
+fn a_hat_is_placed_within_one_rows_footprint_of_its_centre() {
+    let f = finder();
+    for c in [
+        [0.6, 0.0],
+        [1.2, 0.9],
+        [-1.5, 0.7],
+        [0.3, -1.9],
+        [-0.4, -0.5],
+    ] {
+        let hats = f.find(&draw(&f, &[c]));
+        assert_eq!(hats.len(), 1, "{c:?}: {hats:?}");
+        let e = (hats[0].position_m[0] - c[0]).hypot(hats[0].position_m[1] - c[1]);
+        let bound = row_footprint_m(&f, c[0].hypot(c[1]));
+        assert!(
+            e < bound,
+            "{c:?}: {:?} is {e:.4} m off (bound {bound:.4})",
+            hats[0]
+        );
+    }
+}
+
+#[test]
+fn a_hat_across_the_seam_is_one_blob_behind_the_camera() {
+    let f = finder();
+    let hats = f.find(&draw(&f, &[[-1.0, 0.0]]));
+    assert_eq!(hats.len(), 1, "{hats:?}");
+    assert!((hats[0].azimuth_rad.abs() - std::f64::consts::PI).abs() < 0.01);
+    assert!((hats[0].position_m[0] + 1.0).abs() < 0.02 && hats[0].position_m[1].abs() < 0.01);
+}
+
+#[test]
+fn hats_apart_are_apart_and_specks_are_not_hats() {
+    let f = finder();
+    let hats = f.find(&draw(&f, &[[0.5, 0.5], [1.0, -0.5], [1.5, 0.0]]));
+    assert_eq!(hats.len(), 3, "{hats:?}");
+    // Largest (nearest) first.
+    assert!(hats.windows(2).all(|w| w[0].pixels >= w[1].pixels));
+    // A speck of three orange pixels is below the 4-pixel blob.
+    let mut img = draw(&f, &[]);
+    for k in [300 * 780 + 10, 300 * 780 + 11, 301 * 780 + 10] {
+        img.data[k * 3..k * 3 + 3].copy_from_slice(&[246, 171, 64]);
+    }
+    assert!(f.find(&img).is_empty());
+}
+
+#[test]
+fn orange_is_the_hat_lit_or_shaded_and_nothing_grey_or_blue() {
+    // The rendered hat's top, its sides in shade (from the lab's panoramas).
+    for c in [
+        [246, 171, 64],
+        [234, 173, 86],
+        [200, 140, 50],
+        [190, 140, 70],
+    ] {
+        assert!(is_orange(c), "{c:?}");
+    }
+    // Grey and blue bodies, white walls, black, a dark brown and a yellow.
+    for c in [
+        [140, 140, 148],
+        [64, 77, 102],
+        [230, 230, 225],
+        [0, 0, 0],
+        [90, 60, 30],
+        [240, 230, 40],
+    ] {
+        assert!(!is_orange(c), "{c:?}");
+    }
+}
+
+#[test]
+fn an_image_of_another_size_or_encoding_has_no_hats() {
+    let f = finder();
+    let mut img = draw(&f, &[[0.6, 0.0]]);
+    img.encoding = PixelEncoding::Mono8;
+    assert!(f.find(&img).is_empty());
+    let mut small = finder();
+    small.panorama.width = 390;
+    assert!(small.find(&draw(&f, &[[0.6, 0.0]])).is_empty());
+}
+
+#[test]
+fn pixel_inverts_azimuth_and_elevation() {
+    let p = finder().panorama;
+    for (u, v) in [(0.0, 0.0), (389.5, 290.0), (779.0, 579.0)] {
+        let (uu, vv) = p.pixel(p.azimuth(u), p.elevation(v));
+        assert!((uu - u).abs() < 1e-9 && (vv - v).abs() < 1e-9, "({u}, {v})");
+    }
+}
+
+#[test]
+fn a_whole_hat_measures_its_area_and_a_cut_or_doubled_one_is_dropped() {
+    let f = finder();
+    let top = HAT_SIDE_M * HAT_SIDE_M;
+    let hats = f.find(&draw(&f, &[[1.0, 0.5]]));
+    assert_eq!(hats.len(), 1);
+    // The drawn top alone: its area to within the pixels' edge (a few per cent at 1.1 m).
+    assert!(
+        (hats[0].area_m2 / top - 1.0).abs() < 0.1,
+        "{}",
+        hats[0].area_m2 / top
+    );
+    // Half the hat hidden (the columns left of its centre painted over): no hat.
+    let mut cut = draw(&f, &[[1.0, 0.5]]);
+    let (u_centre, _) = f.panorama.pixel(0.5f64.atan2(1.0), 0.0);
+    for v in 0..f.panorama.height as usize {
+        for u in u_centre as usize..u_centre as usize + 40 {
+            let k = (v * f.panorama.width as usize + u) * 3;
+            cut.data[k..k + 3].copy_from_slice(&[120, 118, 112]);
+        }
+    }
+    assert!(f.find(&cut).is_empty(), "{:?}", f.find(&cut));
+    // Two hats touching, one blob of twice the area: no hat.
+    let pair = f.find(&draw(&f, &[[1.0, 0.5], [1.0, 0.5 + HAT_SIDE_M]]));
+    assert!(pair.is_empty(), "{pair:?}");
+}
