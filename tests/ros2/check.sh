@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# ROS 2 recordings read by outside tools: records the lab (laser, compass, encoders, tracker,
+# ROS 2 recordings read by outside tools: records the lab (laser, compass, encoders,
 # commands, radio) and two rendered seconds of the short village (raw images, IMU,
 # rendezvous) with `hetsim run --record`, then decodes every message with Foxglove's
 # decoder (mcap-ros2-support) and with rosbags' built-in ROS 2 Humble types

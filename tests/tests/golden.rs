@@ -192,6 +192,13 @@ fn check(name: &str, args: &[&str], golden: PerAdapter) -> bool {
 // reading before its scan, the operator's start pose carries a seeded error, the filter has
 // its own stream, and the tracker rotates by the heading only (before: lab f923a146 /
 // 2bc8855d, indoor-team 24e3ae5b / 3a0e9dbd, indoor-grid-20 794ac6b4).
+//
+// The lab, indoor-team and indoor-grid-20 digests moved when the parent began to track its
+// children by the hats in its panoramas (issue 18): the parent model has no emulated child
+// tracker (no tracker messages in any run with a parent), the coverage parent's omnidirectional
+// camera is rendered at 5 Hz through the mission, and a child found again after a stretch out
+// of view is re-aimed. village-short did not move. Before: lab 27347285 / 803ab023,
+// indoor-team 5301415e / 3a55a8f1, indoor-grid-20 37c3497d.
 
 #[test]
 fn golden_lab_mission() {
@@ -202,12 +209,12 @@ fn golden_lab_mission() {
             (
                 LAVAPIPE.0,
                 LAVAPIPE.1,
-                "27347285b4345e16afe0496bf45d456e5ed69b405c452a1e0fd764c0726de6ac",
+                "081d484d434fe46b872c55821fa90ab0b262a75b4e747c59e16bbd86e4ce0097",
             ),
             (
                 LLVMPIPE_GL.0,
                 LLVMPIPE_GL.1,
-                "803ab023c17fb83495176a7cf4e78784d5e4b577a045a52962a94e5a3e76f9b1",
+                "a511e2adbd0d513cae014e9a9012914954b0f06203aabf2e2b0e233bf09d2fd0",
             ),
         ],
     );
@@ -222,12 +229,12 @@ fn golden_indoor_team_mission() {
             (
                 LAVAPIPE.0,
                 LAVAPIPE.1,
-                "5301415e07ec5c55d976f999572660d06b2696213ff05eac253422169330863c",
+                "ce0ff31c1f320dd69f55ca106df3aecf74d3ef4938f9ab8f30e89e742ed2914c",
             ),
             (
                 LLVMPIPE_GL.0,
                 LLVMPIPE_GL.1,
-                "3a55a8f10587346bd031fdb2ed1d68d04380fa389b2fd4b2a2cff528d59ade1c",
+                "7820fe69e96cfc367bf977f61137ae9e194225bbca65c5129402a30eda283d55",
             ),
         ],
     );
@@ -241,7 +248,7 @@ fn golden_indoor_grid_20_without_cameras() {
         &[(
             "none",
             "none",
-            "37c3497dcab775a5398c5a4b86aa5a6344b38e4049ae293171cb550019dececc",
+            "f24b3033035156aee347e12b49d0b12c136cbfce0ca035f48c56302c50dae4c3",
         )],
     ));
 }

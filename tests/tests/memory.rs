@@ -92,16 +92,17 @@ fn a_long_run_keeps_no_per_tick_state() {
     );
 }
 
-/// The coverage team without cameras (laser, compass, encoders, the tracker, orders over the
-/// radio): the heap grows by what the robots keep (the parent's record of each child's
-/// tracked path) and no more, however long a child waits for an image that never comes
-/// (without cameras, none does).
+/// The coverage team without cameras (laser, compass, encoders, orders over the radio; no
+/// panoramas, so no hat fixes: the parent drives its children by dead reckoning): the heap
+/// grows by what the robots keep (the parent's record of each child's tracked path) and no
+/// more, however long a child waits for an image that never comes (without cameras, none
+/// does).
 #[test]
 fn a_long_coverage_mission_keeps_no_per_tick_state() {
     let (grown, samples, kept) = growth("scenarios/lab.toml", 20.0, 300.0);
     println!("lab: the heap grew by {grown} bytes from 20 s to 300 s; the robots keep {kept}");
-    // The parent keeps each child's tracked path (5 Hz), in Vecs whose capacity is at most
-    // twice their length.
+    // What the robots keep (no tracked paths here: no panoramas, no fixes) is in Vecs whose
+    // capacity is at most twice their length.
     assert!(
         grown <= 2 * kept + 16 * 1024,
         "lab: the heap grew by {grown} bytes from 20 s to 300 s, the robots keep {kept}: per-tick state accumulates ({:?})",

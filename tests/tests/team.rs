@@ -124,6 +124,19 @@ fn lab_mission_images_every_reachable_vertex_with_a_stable_digest() {
         loc["heading_error_max_deg"].as_f64().unwrap() < 10.0,
         "{loc}"
     );
+    // The parent tracks its children by the hats in its panoramas: its fixes, placed by its
+    // own localization, are within the seed's tracker accuracy (0.04 +- 0.02 m within r_los):
+    // mean under 0.04 m, 95 % under 0.08 m (its mean plus two standard deviations).
+    let tracking = &t["tracking"];
+    assert!(tracking["fixes"].as_u64().unwrap() > 1000, "{tracking}");
+    assert!(
+        tracking["error_m"]["mean"].as_f64().unwrap() < 0.04,
+        "{tracking}"
+    );
+    assert!(
+        tracking["error_p95_m"].as_f64().unwrap() < 0.08,
+        "{tracking}"
+    );
     // Mission time in the range of the seed's 38.4 min (our children turn faster).
     let minutes = t["mission_min"].as_f64().unwrap();
     assert!((15.0..45.0).contains(&minutes), "{minutes} min");

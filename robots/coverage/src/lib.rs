@@ -32,7 +32,7 @@ pub mod visibility;
 
 pub use execute::{plan, plan_with, Frame, Phase, Plan, PlanError};
 pub use map::{Map, Vertex};
-pub use parent::{ParentParams, ParentStack};
+pub use parent::{HatTracker, ParentParams, ParentStack};
 pub use report::{DatabaseImage, TeamReport, TrackedPath, TEAM_ARTIFACT};
 pub use team::{ChildParams, ChildStack};
 pub use validate::validate;

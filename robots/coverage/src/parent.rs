@@ -13,6 +13,10 @@
 //!   publishes it as the `mcl` trajectory. It reads no truth: an oracle pose in its inbox
 //!   (a scenario may switch the parent model's on for waypoint following) is ignored. It
 //!   drives between vertices by rotating in place, then straight.
+//! * **Tracking.** It finds the children's orange hats in its omnidirectional panoramas
+//!   ([`hetsim_vision::hats`], from its plan to the mission's end) and gives each hat within
+//!   r_los to the child expected nearest (see `parent/sense.rs`); without a camera it takes
+//!   an emulated tracker's fixes (`ChildTracks`).
 //! * **Execution.** The grid-level plan ([`crate::plan`]) is executed timestep by timestep:
 //!   the robots that move in a timestep are driven to their next vertex together; when all
 //!   have arrived, the timestep's grabs are ordered; when all images are in, the next
@@ -32,6 +36,8 @@
 //! * **Stuck.** A tracked child whose drive should long be over is driven again from where
 //!   it is; a child whose encoders stall while driving ends the drive itself (see
 //!   [`crate::team`]).
+//! * **Found again.** A driving child tracked again after a gap in its fixes is re-aimed
+//!   from where it is seen: its dead-reckoned course can be decimetres off.
 //! * **Lost track.** A child that should be in view but has not been tracked for
 //!   `lost_after_ns` while driving is stopped at once (a tracking loss); it is driven on when
 //!   the tracker finds it again, or open loop from its last track after `reacquire_ns` (the
@@ -54,8 +60,10 @@ use hetsim_pilot::{GroundPilot, GroundPilotParams};
 mod sense;
 mod teleop;
 
+pub use sense::HatTracker;
+
 /// Tuning of the parent's teleoperation.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct ParentParams {
     /// The parent's own pilot.
     pub pilot: GroundPilotParams,
@@ -76,6 +84,9 @@ pub struct ParentParams {
     pub laser_mount: Option<[f64; 3]>,
     /// Its laser localization.
     pub mcl: MclParams,
+    /// Its hat tracker on the omnidirectional camera; without one it takes the fixes of an
+    /// emulated tracker (`ChildTracks`).
+    pub hat_tracker: Option<HatTracker>,
     /// Seed of the localization's random numbers.
     pub seed: u64,
 }
@@ -95,12 +106,15 @@ impl ParentParams {
             },
             arrive_m: 0.07,
             reaim_m: 0.2,
-            track_timeout_ns: 300_000_000,
+            // Two and a half of the hat tracker's 5 Hz periods: one panorama without a
+            // child's hat does not make it untracked.
+            track_timeout_ns: 500_000_000,
             lost_after_ns: 500_000_000,
             reacquire_ns: 3_000_000_000,
             resend_ns: 500_000_000,
             laser_mount: None,
             mcl: MclParams::default(),
+            hat_tracker: None,
             seed: 0,
         }
     }
@@ -140,6 +154,8 @@ struct Child {
     planned: [f64; 2],
     estimate: [f64; 2],
     last_fix_ns: Option<u64>,
+    /// Tracked again, while driving, after more than a second without fixes.
+    reacquired: bool,
     seq: u32,
     order: Option<Order>,
     acked: bool,
@@ -171,6 +187,9 @@ pub struct ParentStack {
     /// target); robot 0 is the parent, robot k the k-th child.
     waiting: Vec<(usize, Vertex, Option<usize>)>,
     children: Vec<Child>,
+    /// The hat tracker's last panorama, and since when it has looked without a break (a
+    /// child is lost only if untracked while the parent looks), nanoseconds.
+    looked: Option<(u64, u64)>,
     report: TeamReport,
     outbox: Vec<Outgoing>,
     now_ns: u64,
@@ -246,6 +265,7 @@ impl ParentStack {
                 planned: mission.grid.centre_of(*c, *r),
                 estimate: mission.grid.centre_of(*c, *r),
                 last_fix_ns: None,
+                reacquired: false,
                 seq: 0,
                 order: None,
                 acked: true,
@@ -271,6 +291,7 @@ impl ParentStack {
             pilot: None,
             waiting: Vec::new(),
             children,
+            looked: None,
             report: TeamReport::default(),
             outbox: Vec::new(),
             now_ns: 0,
@@ -460,6 +481,7 @@ impl ParentStack {
                     self.localized(scan.stamp_ns, updated);
                 }
                 SensorMsg::ChildTracks(t) => self.tracks(t),
+                SensorMsg::Image(image) => self.look(image),
                 SensorMsg::Comms(d) => {
                     if let (Some(i), Some(m)) = (
                         self.children.iter().position(|c| c.name == d.from),
@@ -513,8 +535,10 @@ impl RobotStack for ParentStack {
             goals_reached: self.report.steps_done,
             goals_total: self.report.steps_total,
             goals_skipped: 0,
-            // The tracker does the parent's seeing; no stored panoramas.
-            wants_images: false,
+            // The hat tracker's panoramas, while the mission runs.
+            wants_images: self.params.hat_tracker.is_some()
+                && self.plan.is_some()
+                && self.report.finished_ns.is_none(),
             mission_over: self.report.finished_ns.is_some(),
         }
     }

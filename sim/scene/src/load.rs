@@ -341,12 +341,15 @@ fn check_missions(
             ));
         }
         let has = |kind: &str| r.model.sensors.iter().any(|s| s.kind() == kind);
-        if matches!(r.spec.mission, MissionSpec::CoverageParent) && !has("child_tracker") {
+        if matches!(r.spec.mission, MissionSpec::CoverageParent)
+            && !(has("omni_camera") || has("child_tracker"))
+        {
             return Err(c.error_at(
                 &["robots", &idx, "mission", "kind"],
                 "\"coverage_parent\"",
                 format!(
-                    "a robot with a child_tracker sensor ({} has none)",
+                    "a robot with an omni_camera (its hat tracker's) or a child_tracker sensor \
+                     ({} has neither)",
                     r.spec.model
                 ),
             ));

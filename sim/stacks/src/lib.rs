@@ -250,6 +250,7 @@ fn coverage_stack(
                 ]),
                 _ => None,
             });
+            params.hat_tracker = hat_tracker(scenario, robot);
             Some(Box::new(hetsim_coverage::ParentStack::new(params, mission)))
         }
         Mission::Teleoperated { .. } => {
@@ -272,6 +273,51 @@ fn coverage_stack(
         }
         _ => None,
     }
+}
+
+/// The parent's hat tracker on its first omnidirectional camera, calibrated from its robot
+/// file (the panorama, the mount) and the children's (the hats' height: the teleoperated
+/// robots' first hatted model; every scenario's children share one). `None` without such a
+/// camera, or without hatted children: the parent then takes an emulated tracker's fixes.
+fn hat_tracker(scenario: &Scenario, robot: &ResolvedRobot) -> Option<hetsim_coverage::HatTracker> {
+    let child = scenario
+        .robots
+        .iter()
+        .find(|r| matches!(r.spec.mission, MissionSpec::CoverageChild) && r.model.body.hat)?;
+    let b = &child.model.body;
+    let hat_height_m = b.height_m + hetsim_scene::HAT_THICKNESS_M;
+    let hat_area_m2 = b.length_m * b.width_m * hetsim_scene::HAT_SCALE.powi(2);
+    robot.model.sensors.iter().find_map(|s| match s {
+        Sensor::OmniCamera {
+            name,
+            mount,
+            width_px,
+            height_px,
+            elevation_deg,
+            ..
+        } => Some(hetsim_coverage::HatTracker {
+            camera: name.clone(),
+            mount: [
+                mount.xyz_m[0],
+                mount.xyz_m[1],
+                mount.rpy_deg[2].to_radians(),
+            ],
+            finder: hetsim_vision::hats::HatFinder {
+                panorama: hetsim_vision::hats::Panorama {
+                    width: *width_px,
+                    height: *height_px,
+                    elevation_rad: elevation_deg.map(f64::to_radians),
+                },
+                camera_height_m: mount.xyz_m[2],
+                hat_height_m,
+                min_pixels: 4,
+                hat_area_m2,
+            },
+            range_m: coverage_params(scenario).r_los_m,
+            gate_m: 0.3,
+        }),
+        _ => None,
+    })
 }
 
 /// The mission message for a mission as written.

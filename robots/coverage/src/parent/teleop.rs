@@ -35,6 +35,18 @@ impl ParentStack {
             .is_some_and(|t| self.now_ns.saturating_sub(t) <= self.params.track_timeout_ns)
     }
 
+    /// Since when child `i` has gone untracked: its last fix, or when the hat tracker's
+    /// camera started looking if that is later (a child is not lost while nobody looks).
+    pub(super) fn untracked_since(&self, i: usize) -> Option<u64> {
+        let last = self.children[i].last_fix_ns?;
+        match self.looked {
+            // Panoramas stopped coming: nobody looks.
+            Some((image, _)) if self.now_ns.saturating_sub(image) > 800_000_000 => None,
+            Some((_, since)) => Some(last.max(since)),
+            None => Some(last),
+        }
+    }
+
     /// Whether the parent should see child `i` where it believes the child is.
     pub(super) fn expected_in_view(&self, i: usize) -> bool {
         let Some(pose) = self.pose else {
@@ -148,6 +160,7 @@ impl ParentStack {
 
     pub(super) fn start_move(&mut self, i: usize, goal: [f64; 2], corrections: u32) {
         self.children[i].planned = goal;
+        self.children[i].reacquired = false;
         let from = self.children[i].estimate;
         let d = dist(from, goal);
         let due_ns = self.drive_towards(i, goal);
@@ -186,8 +199,8 @@ impl ParentStack {
                 if !tracked
                     && !blind
                     && self.expected_in_view(i)
-                    && self.children[i]
-                        .last_fix_ns
+                    && self
+                        .untracked_since(i)
                         .is_some_and(|t| now.saturating_sub(t) > self.params.lost_after_ns)
                 {
                     self.report.tracking_losses += 1;
@@ -197,6 +210,13 @@ impl ParentStack {
                         since_ns: now,
                         corrections,
                     };
+                    return;
+                }
+                if tracked && std::mem::take(&mut self.children[i].reacquired) {
+                    // Found again after more than a second out of view, dead-reckoned
+                    // (its course can be decimetres off after a few open-loop moves, and a
+                    // lab child drove on into a shelf): re-aim it from where it is seen.
+                    self.start_move(i, goal, corrections);
                     return;
                 }
                 if tracked
