@@ -36,8 +36,8 @@
 //! * **Stuck.** A tracked child whose drive should long be over is driven again from where
 //!   it is; a child whose encoders stall while driving ends the drive itself (see
 //!   [`crate::team`]).
-//! * **Found again.** A driving child tracked again after a gap in its fixes is re-aimed
-//!   from where it is seen: its dead-reckoned course can be decimetres off.
+//! * **Found again.** A driving child tracked again after more than a second without fixes
+//!   is re-aimed from where it is seen: its dead-reckoned course can be decimetres off.
 //! * **Lost track.** A child that should be in view but has not been tracked for
 //!   `lost_after_ns` while driving is stopped at once (a tracking loss); it is driven on when
 //!   the tracker finds it again, or open loop from its last track after `reacquire_ns` (the

@@ -5,9 +5,8 @@
 //! **Which hat is which child.** The hats look alike, so each panorama's hats go to the
 //! children the parent expects there: every (child, hat) pair within [`HatTracker::gate_m`]
 //! of the child's estimate (of an untracked driving child's drive, from where it began to
-//! its goal),
-//! nearest pairs first, one hat per child and one child per hat.
-//! A hat nobody is expected at (a child off its estimate by more than the gate, or one
+//! its goal), nearest pairs first, one hat per child and one child per hat. A hat nobody is
+//! expected at (a child off its estimate by more than the gate, or one
 //! beyond the tracker's range) is left alone; a child not given a hat is untracked in that
 //! panorama.
 
@@ -48,13 +47,9 @@ impl ParentStack {
     }
 
     /// A body-frame point on the map, by the parent's pose.
-    fn on_map(pose: &Pose, [lx, ly]: [f64; 2]) -> [f64; 2] {
-        let (sin, cos) = yaw_of(pose).sin_cos();
+    fn on_map(pose: &Pose, p: [f64; 2]) -> [f64; 2] {
         let origin = pose.translation.vector;
-        [
-            origin.x + cos * lx - sin * ly,
-            origin.y + sin * lx + cos * ly,
-        ]
+        planar([origin.x, origin.y, yaw_of(pose)], p)
     }
 
     /// An emulated tracker's fixes, placed on the map by the parent's pose.
@@ -79,24 +74,18 @@ impl ParentStack {
         if image.sensor != tracker.camera {
             return;
         }
-        // Looking without a break: the previous panorama came within two of the camera's
-        // periods (or so it seems at 2.5 Hz and more).
+        // Looking without a break: the previous panorama came within LOOK_GAP_NS.
         let since = match self.looked {
-            Some((last, since)) if image.stamp_ns <= last + 800_000_000 => since,
+            Some((last, since)) if image.stamp_ns <= last + LOOK_GAP_NS => since,
             _ => image.stamp_ns,
         };
         self.looked = Some((image.stamp_ns, since));
-        let [mx, my, myaw] = tracker.mount;
-        let (sin, cos) = myaw.sin_cos();
         let hats: Vec<[f64; 2]> = tracker
             .finder
             .find(image)
             .iter()
             .filter(|h| h.position_m[0].hypot(h.position_m[1]) <= tracker.range_m)
-            .map(|h| {
-                let [x, y] = h.position_m;
-                Self::on_map(&pose, [mx + cos * x - sin * y, my + sin * x + cos * y])
-            })
+            .map(|h| Self::on_map(&pose, planar(tracker.mount, h.position_m)))
             .collect();
         let tracked: Vec<bool> = (0..self.children.len()).map(|i| self.tracked(i)).collect();
         let mut pairs: Vec<(f64, usize, usize)> = Vec::new();
@@ -131,15 +120,12 @@ impl ParentStack {
     /// weight `alpha` (1: taken as it is).
     fn fix(&mut self, i: usize, stamp_ns: u64, position_m: [f64; 2], alpha: f64) {
         let c = &mut self.children[i];
-        // A fresh track after a gap is taken as it is.
-        let fresh = c
-            .last_fix_ns
-            .is_none_or(|t0| stamp_ns.saturating_sub(t0) > 300_000_000);
-        let alpha = if fresh { 1.0 } else { alpha };
-        // Out of view for more than a second (five panoramas), not a hat missed once.
         let gap_ns = c
             .last_fix_ns
             .map_or(u64::MAX, |t0| stamp_ns.saturating_sub(t0));
+        // A fresh track after a gap is taken as it is.
+        let alpha = if gap_ns > 300_000_000 { 1.0 } else { alpha };
+        // Out of view for more than a second (five panoramas), not a hat missed once.
         c.reacquired = gap_ns > 1_000_000_000 && matches!(c.task, Task::Move { .. });
         c.estimate = [
             c.estimate[0] + alpha * (position_m[0] - c.estimate[0]),
@@ -158,6 +144,16 @@ impl ParentStack {
             fixes.1 += 1;
         }
     }
+}
+
+/// Panoramas further apart than this are not one look without a break (two periods of a
+/// camera at 2.5 Hz), nanoseconds.
+pub(super) const LOOK_GAP_NS: u64 = 800_000_000;
+
+/// Point `p` of a frame placed at `[x, y, yaw]`, in the outer frame.
+fn planar([x, y, yaw]: [f64; 3], [px, py]: [f64; 2]) -> [f64; 2] {
+    let (sin, cos) = yaw.sin_cos();
+    [x + cos * px - sin * py, y + sin * px + cos * py]
 }
 
 /// Distance from `p` to the segment from `a` to `b`.

@@ -41,7 +41,7 @@ impl ParentStack {
         let last = self.children[i].last_fix_ns?;
         match self.looked {
             // Panoramas stopped coming: nobody looks.
-            Some((image, _)) if self.now_ns.saturating_sub(image) > 800_000_000 => None,
+            Some((image, _)) if self.now_ns.saturating_sub(image) > sense::LOOK_GAP_NS => None,
             Some((_, since)) => Some(last.max(since)),
             None => Some(last),
         }
