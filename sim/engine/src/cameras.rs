@@ -35,7 +35,7 @@ enum Model {
     /// which faces (indices into `CUBE`) those are.
     Omni {
         face: Intrinsics,
-        taps: Vec<optics::Tap>,
+        taps: optics::Taps,
         faces: Vec<usize>,
     },
 }

@@ -165,20 +165,25 @@ pub(super) fn panorama_lookup(
     out
 }
 
-/// Resamples the six rendered cube faces into the panorama (depth becomes range).
-/// One panorama pixel's bilinear tap: the rendered face it reads (its index among the faces
-/// rendered), the byte offset of the top-left source pixel in the face's RGBA and the steps
-/// to its right and lower neighbours (0 on the face's last column or row), the weights of
-/// those neighbours in 1/256ths, and the ratio of range to the face's depth there.
+/// One panorama pixel's bilinear tap: the index of its top-left source pixel in the rendered
+/// faces laid end to end (each `width x height`, in the order of [`panorama_taps`]'s faces),
+/// and the weights of its right and lower neighbours in 1/256ths. On a face's last column
+/// (row) the tap starts one pixel left (up) with the full weight 256 on the edge pixel, so
+/// that the neighbours always exist and the value is the edge pixel's, as clamping gives.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(super) struct Tap {
-    face: u8,
-    offset: u32,
-    right: u32,
-    down: u32,
+    index: u32,
     wx: u16,
     wy: u16,
-    scale: f32,
+}
+
+/// Every panorama pixel's [`Tap`], the faces' width, and per pixel the ratio of range to the
+/// face's depth there (for panoramas with depth).
+#[derive(Clone, Debug, PartialEq)]
+pub(super) struct Taps {
+    taps: Vec<Tap>,
+    face_width: u32,
+    range_scale: Vec<f32>,
 }
 
 /// The panorama's taps in fixed point and the cube faces they read (indices into [`CUBE`],
@@ -187,68 +192,111 @@ pub(super) struct Tap {
 pub(super) fn panorama_taps(
     face: &Intrinsics,
     lookup: &[(u8, f32, f32, f32)],
-) -> (Vec<Tap>, Vec<usize>) {
+) -> (Taps, Vec<usize>) {
     let mut used = [false; 6];
     for &(f, ..) in lookup {
         used[f as usize] = true;
     }
     let faces: Vec<usize> = (0..6).filter(|&f| used[f]).collect();
     let (w, h) = (face.width, face.height);
+    assert!(w >= 2 && h >= 2, "a cube face of {w} x {h} pixels");
+    // The top-left pixel and the weight of the next one along an axis of `n` pixels.
+    let axis = |t: f32, n: u32| {
+        let t = t.clamp(0.0, (n - 1) as f32);
+        let x = t.floor() as u32;
+        let weight = ((t - x as f32) * 256.0).round() as u16;
+        if x + 1 < n {
+            (x, weight)
+        } else {
+            (n - 2, 256)
+        }
+    };
     let taps = lookup
         .iter()
-        .map(|&(f, u, v, scale)| {
-            let (u, v) = (u.clamp(0.0, (w - 1) as f32), v.clamp(0.0, (h - 1) as f32));
-            let (x, y) = (u.floor() as u32, v.floor() as u32);
+        .map(|&(f, u, v, _)| {
+            let (x, wx) = axis(u, w);
+            let (y, wy) = axis(v, h);
+            let k = faces.iter().position(|&k| k == f as usize).expect("used") as u32;
             Tap {
-                face: faces.iter().position(|&k| k == f as usize).expect("used") as u8,
-                offset: (y * w + x) * 4,
-                right: if x + 1 < w { 4 } else { 0 },
-                down: if y + 1 < h { w * 4 } else { 0 },
-                wx: ((u - x as f32) * 256.0).round() as u16,
-                wy: ((v - y as f32) * 256.0).round() as u16,
-                scale,
+                index: k * w * h + y * w + x,
+                wx,
+                wy,
             }
         })
         .collect();
-    (taps, faces)
+    let range_scale = lookup.iter().map(|&(.., scale)| scale).collect();
+    (
+        Taps {
+            taps,
+            face_width: w,
+            range_scale,
+        },
+        faces,
+    )
 }
 
 /// The panorama (RGB) resampled from the rendered faces (in the order of
 /// [`panorama_taps`]'s faces), and its range where the faces have depth. Bilinear in fixed
 /// point (weights in 1/256ths): each channel is within 1.5 levels of the exact
 /// interpolation, and within one where neighbours differ by under 128 levels.
-pub(super) fn panorama(faces: &[Frame], taps: &[Tap]) -> (Vec<u8>, Option<Vec<f32>>) {
+pub(super) fn panorama(faces: &[Frame], taps: &Taps) -> (Vec<u8>, Option<Vec<f32>>) {
+    // The faces end to end, a pixel (RGBA, little-endian) per u32.
+    let mut pixels: Vec<u32> = Vec::with_capacity(faces.iter().map(|f| f.rgba.len() / 4).sum());
+    for f in faces {
+        pixels.extend(
+            f.rgba
+                .chunks_exact(4)
+                .map(|p| u32::from_le_bytes([p[0], p[1], p[2], p[3]])),
+        );
+    }
+    let w = taps.face_width as usize;
     // In blocks of 4096 pixels on the worker threads (each pixel is its own; the bytes do
     // not depend on the split).
     const BLOCK: usize = 4096;
-    let mut rgb = vec![0u8; taps.len() * 3];
+    let mut rgb = vec![0u8; taps.taps.len() * 3];
     rgb.par_chunks_mut(BLOCK * 3)
-        .zip(taps.par_chunks(BLOCK))
+        .zip(taps.taps.par_chunks(BLOCK))
         .for_each(|(block, taps)| {
             for (px, t) in block.chunks_exact_mut(3).zip(taps) {
-                let src = &faces[t.face as usize].rgba;
                 let (wx, wy) = (t.wx as u32, t.wy as u32);
-                let (a, b) = (t.offset as usize, (t.offset + t.right) as usize);
-                let (c, d) = (a + t.down as usize, b + t.down as usize);
-                for (ch, out) in px.iter_mut().enumerate() {
-                    let top = src[a + ch] as u32 * (256 - wx) + src[b + ch] as u32 * wx;
-                    let bottom = src[c + ch] as u32 * (256 - wx) + src[d + ch] as u32 * wx;
-                    *out = ((top * (256 - wy) + bottom * wy + 32768) >> 16) as u8;
-                }
+                let i = t.index as usize;
+                let (top, bottom) = (&pixels[i..i + 2], &pixels[i + w..i + w + 2]);
+                // Along the row, two channels per product: red and blue (green and alpha)
+                // in 16-bit lanes, each weighted sum at most 255 * 256.
+                let row = |p: &[u32], shift: u32| {
+                    let (a, b) = ((p[0] >> shift) & 0x00ff_00ff, (p[1] >> shift) & 0x00ff_00ff);
+                    a * (256 - wx) + b * wx
+                };
+                // Down the column, in 32-bit lanes (each sum under 2^24), rounded to nearest.
+                let column = |t: u32, b: u32| {
+                    let spread = |x: u32| (x & 0xffff) as u64 | ((x >> 16) as u64) << 32;
+                    (spread(t) * (256 - wy) as u64 + spread(b) * wy as u64 + 0x8000_0000_8000) >> 16
+                };
+                let rb = column(row(top, 0), row(bottom, 0));
+                let ga = column(row(top, 8), row(bottom, 8));
+                px[0] = rb as u8;
+                px[1] = ga as u8;
+                px[2] = (rb >> 32) as u8;
             }
         });
     let depth = faces[0].depth_m.as_ref().map(|_| {
-        taps.iter()
-            .map(|t| {
-                let f = &faces[t.face as usize];
-                let mut k = t.offset as usize / 4;
+        let depths: Vec<f32> = faces
+            .iter()
+            .flat_map(|f| f.depth_m.as_deref().expect("every face has depth"))
+            .copied()
+            .collect();
+        taps.taps
+            .iter()
+            .zip(&taps.range_scale)
+            .map(|(t, scale)| {
+                let mut k = t.index as usize;
                 if t.wx >= 128 {
-                    k += t.right as usize / 4;
+                    k += 1;
                 }
                 if t.wy >= 128 {
-                    k += t.down as usize / 4;
+                    k += w;
                 }
-                f.depth_m.as_ref().map_or(0.0, |d| d[k]) * t.scale
+                depths[k] * scale
             })
             .collect()
     });
