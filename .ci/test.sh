@@ -10,7 +10,8 @@ export XDG_RUNTIME_DIR="${XDG_RUNTIME_DIR:-/tmp}"
 echo "== cargo test --workspace (HETSIM_BACKEND=vulkan)"
 HETSIM_BACKEND=vulkan cargo test --workspace
 echo "== rendered-image tests again (HETSIM_BACKEND=gl)"
-HETSIM_BACKEND=gl cargo test -p hetsim-tests \
+# `--workspace` as above: with `-p` Cargo resolves other features and builds everything again.
+HETSIM_BACKEND=gl cargo test --workspace \
     --test render --test vision --test vo_scale --test slam --test team \
     --test cameras --test oracle
 echo "== ROS 2 recordings decoded by Foxglove's and rosbags' decoders"
