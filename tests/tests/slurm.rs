@@ -154,7 +154,7 @@ fn village_and_lab_sweeps_through_slurm_merge_to_the_files_of_one_machine() {
             tmp.path(),
             "lab",
             &format!(
-                "base = \"{}\"\nseeds = 2\nfirst_seed = 1\nduration_secs = 300.0\nmetrics = [\"team.imaged\", \"team.compass_heading_error_deg.mean\", \"comms.sent\"]\n[axes]\n\"models.ctbot.sensors.compass.sigma_deg\" = [2.0, 6.0]\n",
+                "base = \"{}\"\nseeds = 2\nfirst_seed = 1\nduration_secs = 120.0\nmetrics = [\"team.imaged\", \"team.compass_heading_error_deg.mean\", \"comms.sent\"]\n[axes]\n\"models.ctbot.sensors.compass.sigma_deg\" = [2.0, 6.0]\n",
                 repo().join("scenarios/lab.toml").display()
             ),
         ),

@@ -4,14 +4,14 @@
 use hetsim_tests::{assert_same_sweep_folders as assert_same_tree, hetsim, repo};
 use std::path::{Path, PathBuf};
 
-/// A lab sweep cut to its first 300 sim seconds (rendered grabs, tracker, radio): two compass
+/// A lab sweep cut to its first 120 sim seconds (rendered grabs, tracker, radio): two compass
 /// noises on every c't-Bot x two seeds.
 fn lab_sweep(dir: &Path, extra: &str) -> PathBuf {
     let path = dir.join("lab-runs.toml");
     std::fs::write(
         &path,
         format!(
-            "schema_version = 1\nname = \"lab-runs\"\nkind = \"run\"\nbase = \"{}\"\nseeds = 2\nfirst_seed = 3\nduration_secs = 300.0\nmetrics = [\"team.imaged\", \"team.compass_heading_error_deg.mean\", \"robots.0.distance_m\", \"comms.sent\"]\n{extra}\n[axes]\n\"models.ctbot.sensors.compass.sigma_deg\" = [1.0, 8.0]\n",
+            "schema_version = 1\nname = \"lab-runs\"\nkind = \"run\"\nbase = \"{}\"\nseeds = 2\nfirst_seed = 3\nduration_secs = 120.0\nmetrics = [\"team.imaged\", \"team.compass_heading_error_deg.mean\", \"robots.0.distance_m\", \"comms.sent\"]\n{extra}\n[axes]\n\"models.ctbot.sensors.compass.sigma_deg\" = [1.0, 8.0]\n",
             repo().join("scenarios/lab.toml").display()
         ),
     )
