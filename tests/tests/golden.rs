@@ -16,7 +16,7 @@
 use hetsim_eval::localize::load_database;
 use hetsim_render::{CameraView, Intrinsics, RenderOptions, Renderer};
 use hetsim_scene::{load_scenario, LoadOptions};
-use hetsim_tests::{hetsim, printed_digest, repo};
+use hetsim_tests::{hetsim_release, printed_digest, repo};
 use hetsim_vision::appearance::{best_match, Feature, Features};
 use hetsim_vision::Gray;
 use serde_json::Value;
@@ -73,7 +73,7 @@ fn check(
     let out = dir.path().join(name);
     let mut all = args.to_vec();
     all.extend(["--out", out.to_str().unwrap()]);
-    let output = hetsim(&all, env);
+    let output = hetsim_release(&all, env);
     let stderr = String::from_utf8_lossy(&output.stderr);
     if !output.status.success() && stderr.contains("no usable graphics adapter") {
         eprintln!("{name}: skipped, no adapter for this backend here: {stderr}");

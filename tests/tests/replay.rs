@@ -3,7 +3,7 @@
 //! the first divergence; a EuRoC dump feeds the VO; and each kind of damaged input is refused
 //! with its file and where in it.
 
-use hetsim_tests::{hetsim, printed_digest};
+use hetsim_tests::{hetsim, hetsim_release, printed_digest};
 use std::path::Path;
 
 /// Every file of a results folder by relative path, with its bytes.
@@ -329,7 +329,9 @@ fn a_replayed_coverage_mission_sends_every_recorded_command_or_stops_at_the_firs
     let (rec, live) = (tmp.path().join("lab.mcap"), tmp.path().join("live"));
     // The whole mission, rendered: the children grab their images, the parent teleoperates
     // them to every vertex, and the run ends two seconds after the parent says it is over.
-    let live_digest = ok(&[
+    // The release build, as the golden runs: a whole mission and its replay.
+    let release = |args: &[&str]| printed_digest(&hetsim_release(args, &[]));
+    let live_digest = release(&[
         "run",
         "scenarios/lab.toml",
         "--record",
@@ -347,7 +349,10 @@ fn a_replayed_coverage_mission_sends_every_recorded_command_or_stops_at_the_firs
     // every command the replayed stacks send is the recorded one (replay checks each), the
     // replay ends where the mission ended, and the digest is the live run's.
     let replay = tmp.path().join("replay");
-    assert_eq!(ok(&["replay", &s(&rec), "--out", &s(&replay)]), live_digest);
+    assert_eq!(
+        release(&["replay", &s(&rec), "--out", &s(&replay)]),
+        live_digest
+    );
     // A child that drives faster sends other wheel speeds: the replay stops there.
     let bad = tmp.path().join("bad");
     let e = refused(
