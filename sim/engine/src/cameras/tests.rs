@@ -127,3 +127,49 @@ fn the_panorama_in_fixed_point_is_the_exact_bilinear_within_a_level_and_a_half_a
         assert!((depth.as_ref().unwrap()[i] - 2.0 * scale).abs() < 1e-6);
     }
 }
+
+#[test]
+fn panorama_range_is_the_nearest_source_pixels_and_face_edges_read_the_edge_pixel() {
+    let face = Intrinsics::from_hfov(64, 64, 90.0);
+    // The panorama's own rays, and taps on the faces' last row and column.
+    let mut lookup = panorama_lookup(&face, 256, 128, [-75f64.to_radians(), 15f64.to_radians()]);
+    lookup.extend([
+        (0, 63.0, 63.0, 1.0),
+        (0, 62.999, 10.2, 1.0),
+        (1, 0.0, 63.0, 1.5),
+        (3, 31.5, 62.6, 1.0),
+    ]);
+    let (taps, faces) = panorama_taps(&face, &lookup);
+    // Depth 1, 2, 3, ... along the faces laid end to end, and pseudo-random colours.
+    let frames: Vec<Frame> = (0..faces.len())
+        .map(|k| Frame {
+            width: 64,
+            height: 64,
+            rgba: (0..64 * 64 * 4)
+                .map(|i: usize| ((i * 2654435761 + k * 97) >> 7) as u8)
+                .collect(),
+            depth_m: Some((0..64 * 64).map(|i| (k * 4096 + i + 1) as f32).collect()),
+        })
+        .collect();
+    let (rgb, depth) = panorama(&frames, &taps);
+    let depth = depth.expect("faces with depth");
+    for (i, &(f, u, v, scale)) in lookup.iter().enumerate() {
+        let k = faces.iter().position(|&g| g == f as usize).unwrap();
+        let index = (depth[i] / scale).round() as usize - 1;
+        assert_eq!(index / 4096, k, "pixel {i}: range from another face");
+        let (x, y) = ((index % 4096) % 64, (index % 4096) / 64);
+        // The nearest source pixel, up to the weights' 1/512 rounding.
+        let near = 0.5 + 1.0 / 512.0 + 1e-4;
+        assert!(
+            (x as f32 - u).abs() <= near && (y as f32 - v).abs() <= near,
+            "pixel {i}: range of ({x}, {y}) for ({u}, {v})"
+        );
+        let (exact, _) = optics::bilinear(&frames[k], u as f64, v as f64).unwrap();
+        for ch in 0..3 {
+            assert!(
+                (rgb[i * 3 + ch] as f64 - exact[ch]).abs() <= 1.5,
+                "pixel {i}"
+            );
+        }
+    }
+}
