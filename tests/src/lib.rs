@@ -50,7 +50,8 @@ pub fn hetsim_bin() -> PathBuf {
 }
 
 /// The release build of `hetsim`: for the runs too long for the test profile's optimisation
-/// (the full 600 s village). `.ci/run` builds it before the tests, so there it costs nothing.
+/// (the full 600 s village, the golden missions, the whole-lab recording). `.ci/run` builds it
+/// before the tests, so there it costs nothing; elsewhere the first such test builds it.
 pub fn hetsim_release_bin() -> PathBuf {
     built_hetsim(true)
 }

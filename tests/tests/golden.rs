@@ -80,6 +80,12 @@ fn check(
         return false;
     }
     let digest = printed_digest(&output);
+    // The run used the worker threads it was given.
+    if let Some((_, threads)) = env.iter().find(|(k, _)| *k == "RAYON_NUM_THREADS") {
+        let timing: Value =
+            serde_json::from_slice(&std::fs::read(out.join("timing.json")).unwrap()).unwrap();
+        assert_eq!(timing["threads"], threads.parse::<u64>().unwrap(), "{name}");
+    }
     outputs(&out);
     let manifest: Value =
         serde_json::from_slice(&std::fs::read(out.join("manifest.json")).unwrap()).unwrap();
@@ -334,7 +340,18 @@ fn lab_outputs(out: &Path) {
             .unwrap();
     let k = Intrinsics::from_hfov(120, 88, 80.0);
     let mount = hetsim_msgs::pose_from_xyz_rpy([0.05, 0.0, 0.08], [0.0; 3]);
-    let mut r = Renderer::new(&s.world, &RenderOptions::default()).unwrap();
+    // On the backend the run rendered on (the test process's own may be another).
+    let manifest: Value =
+        serde_json::from_slice(&std::fs::read(out.join("manifest.json")).unwrap()).unwrap();
+    let backend = manifest["adapter"]["backend"]
+        .as_str()
+        .unwrap()
+        .to_lowercase();
+    let options = RenderOptions {
+        backend: Some(backend),
+        ..RenderOptions::default()
+    };
+    let mut r = Renderer::new(&s.world, &options).unwrap();
     let features: Vec<Features> = db.iter().map(|d| d.features.clone()).collect();
     let mut own = 0;
     for (i, entry) in json["images"].as_array().unwrap().iter().enumerate() {
