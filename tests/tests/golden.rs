@@ -118,6 +118,30 @@ fn metrics(dir: &Path) -> Value {
     serde_json::from_slice(&std::fs::read(dir.join("metrics.json")).unwrap()).unwrap()
 }
 
+/// The parent tracks its children by the hats in its panoramas: over more than `min_fixes`
+/// fixes, placed by its own localization, the error is within the seed's tracker accuracy
+/// (0.04 +- 0.02 m within r_los: mean under 0.04 m, 95 % under 0.08 m, its mean plus two
+/// standard deviations), and no fix is given to the wrong child (every one under half the
+/// 0.5 m vertex spacing).
+fn assert_tracking(tracking: &Value, min_fixes: u64) {
+    assert!(
+        tracking["fixes"].as_u64().unwrap() > min_fixes,
+        "{tracking}"
+    );
+    assert!(
+        tracking["error_m"]["mean"].as_f64().unwrap() < 0.04,
+        "{tracking}"
+    );
+    assert!(
+        tracking["error_p95_m"].as_f64().unwrap() < 0.08,
+        "{tracking}"
+    );
+    assert!(
+        tracking["error_max_m"].as_f64().unwrap() < 0.25,
+        "{tracking}"
+    );
+}
+
 // The lab and indoor-team digests moved once, in the commit that made truth an oracle: the
 // children (ctbot, no oracle) no longer receive `<child>/truth` messages, which the digest
 // covered; every stack's commands and radio messages stayed the same bytes (the manifest's
@@ -299,19 +323,7 @@ fn lab_outputs(out: &Path) {
         loc["heading_error_max_deg"].as_f64().unwrap() < 10.0,
         "{loc}"
     );
-    // The parent tracks its children by the hats in its panoramas: its fixes, placed by its
-    // own localization, are within the seed's tracker accuracy (0.04 +- 0.02 m within r_los):
-    // mean under 0.04 m, 95 % under 0.08 m (its mean plus two standard deviations).
-    let tracking = &t["tracking"];
-    assert!(tracking["fixes"].as_u64().unwrap() > 1000, "{tracking}");
-    assert!(
-        tracking["error_m"]["mean"].as_f64().unwrap() < 0.04,
-        "{tracking}"
-    );
-    assert!(
-        tracking["error_p95_m"].as_f64().unwrap() < 0.08,
-        "{tracking}"
-    );
+    assert_tracking(&t["tracking"], 1000);
     // Mission time in the range of the seed's 38.4 min (our children turn faster).
     let minutes = t["mission_min"].as_f64().unwrap();
     assert!((15.0..45.0).contains(&minutes), "{minutes} min");
@@ -395,20 +407,7 @@ fn golden_indoor_team_mission() {
         &|out| {
             let t = &metrics(out)["team"];
             assert_eq!(t["imaged_fraction"], 1.0, "{t}");
-            let tracking = &t["tracking"];
-            assert!(tracking["fixes"].as_u64().unwrap() > 10_000, "{tracking}");
-            assert!(
-                tracking["error_m"]["mean"].as_f64().unwrap() < 0.04,
-                "{tracking}"
-            );
-            assert!(
-                tracking["error_p95_m"].as_f64().unwrap() < 0.08,
-                "{tracking}"
-            );
-            assert!(
-                tracking["error_max_m"].as_f64().unwrap() < 0.25,
-                "{tracking}"
-            );
+            assert_tracking(&t["tracking"], 10_000);
         },
     );
 }
