@@ -10,10 +10,15 @@
 //!   symmetric (Bresenham's line is not).
 //! * **LOS radius.** `w ∈ LOS(v)` needs the centre distance `<= r_los`.
 //! * **View cone.** A child grabbing at `w` looks along the direction of mapping with an
-//!   opening angle `fov`. A robot at `u`, modelled as a disc of radius `ρ`, is in view when it
-//!   is within `r_los` of `w`, in line of sight of `w`, and the disc overlaps the cone:
-//!   `angle(u - w, direction) <= fov / 2 + asin(ρ / |u - w|)`. Beyond `r_los` a 12 cm robot
-//!   spans under 4 of the 120 pixels and is not counted.
+//!   opening angle `fov`. A robot at `u`, modelled as a disc of radius `ρ`, is in view when
+//!   the sight line from `w` crosses no occupied cell's inside ([`line_of_sight_open`]:
+//!   grazing a corner does not hide it, as it does not in the rendered image) and the disc
+//!   overlaps the cone:
+//!   `angle(u - w, direction) <= fov / 2 + asin(ρ / |u - w|)`, at any distance: a robot the
+//!   camera can see is in the image however far it is (a 1.5 m parent is visible across a
+//!   room), which is how the simulator counts robots in the rendered images. (Until
+//!   2026-11 robots beyond `r_los` were not counted; the lab's images then showed a robot
+//!   beyond `r_los` 10 times, `indoor-team`'s 32 times.)
 //! * **LOS_free(v)** is the set of `w ∈ LOS(v)` whose view does not contain the parent
 //!   standing on `v`.
 
@@ -22,6 +27,19 @@ use crate::CoverageParams;
 
 /// Whether the segment between the centres of `a` and `b` touches only free cells.
 pub fn line_of_sight(map: &Map, a: Vertex, b: Vertex) -> bool {
+    sight(map, a, b, true)
+}
+
+/// Whether the segment between the centres of `a` and `b` crosses the inside of no occupied
+/// cell: grazing a corner or running along an edge of one does not block it. What a camera
+/// may see: a cell is occupied when an obstacle covers its centre, so the obstacle may stop
+/// short of the cell's edges and leave that sight line open.
+pub fn line_of_sight_open(map: &Map, a: Vertex, b: Vertex) -> bool {
+    sight(map, a, b, false)
+}
+
+/// [`line_of_sight`] (`closed`: cells the segment touches) or [`line_of_sight_open`].
+fn sight(map: &Map, a: Vertex, b: Vertex, closed: bool) -> bool {
     let ((ac, ar), (bc, br)) = (map.cell(a), map.cell(b));
     // Scaled by 2: cell c spans [2c, 2c + 2], its centre is 2c + 1.
     let (mut x0, mut y0, mut x1, mut y1) = (
@@ -49,9 +67,15 @@ pub fn line_of_sight(map: &Map, a: Vertex, b: Vertex) -> bool {
         let ya = y0 * dx + dy * (xl - x0);
         let yb = y0 * dx + dy * (xr - x0);
         let (lo, hi) = (ya.min(yb), ya.max(yb));
-        // Rows r whose closed span [2r, 2r + 2] meets [lo, hi] / dx.
-        let r_min = ceil_div(lo - 2 * dx, 2 * dx);
-        let r_max = floor_div(hi, 2 * dx);
+        let (r_min, r_max) = if closed {
+            // Rows r whose closed span [2r, 2r + 2] meets [lo, hi] / dx.
+            (ceil_div(lo - 2 * dx, 2 * dx), floor_div(hi, 2 * dx))
+        } else {
+            // Rows r whose open span (2r, 2r + 2) meets the segment inside the column: the
+            // open interval (lo, hi) / dx, or the point lo / dx (never on a row boundary:
+            // it is a cell centre's height) when the segment is level.
+            (floor_div(lo, 2 * dx), ceil_div(hi, 2 * dx) - 1)
+        };
         if !(r_min..=r_max).all(|r| free(c, r)) {
             return false;
         }
@@ -65,9 +89,6 @@ pub fn in_view(map: &Map, params: &CoverageParams, w: Vertex, u: Vertex, radius_
         return true;
     }
     let d = map.distance_m(w, u);
-    if d > params.r_los_m + 1e-9 {
-        return false;
-    }
     let ((wc, wr), (uc, ur)) = (map.cell(w), map.cell(u));
     let (vx, vy) = (uc as f64 - wc as f64, ur as f64 - wr as f64);
     let (dx, dy) = params.direction.unit();
@@ -75,7 +96,7 @@ pub fn in_view(map: &Map, params: &CoverageParams, w: Vertex, u: Vertex, radius_
     let angle = cos.clamp(-1.0, 1.0).acos();
     let half = (params.child_fov_deg / 2.0 + params.view_margin_deg).to_radians();
     let widen = (radius_m / d).min(1.0).asin();
-    angle <= half + widen + 1e-12 && line_of_sight(map, w, u)
+    angle <= half + widen + 1e-12 && line_of_sight_open(map, w, u)
 }
 
 /// LOS(v) and LOS_free(v) for every vertex.
@@ -145,6 +166,7 @@ mod tests {
             child_radius_m: 0.06,
             children: 3,
             f_factor: 2.0,
+            views: crate::ViewRule::EveryGrab,
         }
     }
 
@@ -168,7 +190,7 @@ mod tests {
     }
 
     #[test]
-    fn sight_is_symmetric_on_random_maps() {
+    fn sight_is_symmetric_on_random_maps_and_open_sight_sees_more() {
         use rand::{RngExt, SeedableRng};
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(9);
         for _ in 0..50 {
@@ -184,7 +206,13 @@ mod tests {
             let free = m.vertices();
             for &a in &free {
                 for &b in &free {
-                    assert_eq!(line_of_sight(&m, a, b), line_of_sight(&m, b, a));
+                    let closed = line_of_sight(&m, a, b);
+                    assert_eq!(closed, line_of_sight(&m, b, a));
+                    // The camera's sight is symmetric too, and open wherever the closed one
+                    // is (it only ignores corners and edges).
+                    let open = line_of_sight_open(&m, a, b);
+                    assert_eq!(open, line_of_sight_open(&m, b, a));
+                    assert!(open || !closed, "{:?} {:?}", m.cell(a), m.cell(b));
                 }
             }
         }
@@ -219,5 +247,68 @@ mod tests {
         // Radius: (4,2) -> (0,2) is exactly 2 m.
         assert!(vis.los[centre].contains(&m.at(0, 2).unwrap()));
         assert!(!vis.los[centre].contains(&m.at(0, 3).unwrap()));
+    }
+
+    #[test]
+    fn a_robot_far_beyond_r_los_is_in_view_while_the_camera_sees_it() {
+        // A 15 x 6.5 m room with a one-cell stub on its south wall. From the south-west corner
+        // a child looks east: robots 4.5 m and 14 m away (well beyond r_los = 2 m) inside its
+        // 80 deg view are in its image; one behind the stub is not; one 60 deg off the
+        // camera axis is not.
+        let m = Map::from_text(
+            &[
+                "..............................",
+                "..............................",
+                "..............................",
+                "..............................",
+                "..............................",
+                "..............................",
+                "..............................",
+                "..............................",
+                "..............................",
+                "..............................",
+                "..............................",
+                "..............................",
+                "..........#...................",
+            ],
+            0.5,
+        );
+        let p = params();
+        let w = m.at(0, 0).unwrap();
+        let before_stub = m.at(9, 0).unwrap();
+        let behind_stub = m.at(20, 0).unwrap();
+        let far_ahead = m.at(28, 3).unwrap();
+        let off_axis = m.at(7, 12).unwrap();
+        assert!(m.distance_m(w, before_stub) > 2.0 * p.r_los_m);
+        assert!(m.distance_m(w, far_ahead) > 7.0 * p.r_los_m);
+        assert!(in_view(&m, &p, w, before_stub, p.child_radius_m));
+        assert!(in_view(&m, &p, w, far_ahead, p.child_radius_m));
+        assert!(!in_view(&m, &p, w, behind_stub, p.child_radius_m));
+        assert!(!in_view(&m, &p, w, off_axis, p.child_radius_m));
+    }
+
+    #[test]
+    fn a_camera_sees_past_the_corner_that_closes_the_parents_line_of_sight() {
+        // Filing cabinets fill columns 0-1 of rows 0-3 (the lab's south-west corner). The
+        // line from (0, 4) to (3, 3) passes exactly through the cabinets' north-east corner:
+        // closed for the parent's line of sight, open for a camera. The line to (3, 2) cuts
+        // through a cabinet: closed for both.
+        let m = Map::from_text(&["....", "##..", "##..", "##..", "##.."], 0.5);
+        let (a, corner, through) = (
+            m.at(0, 4).unwrap(),
+            m.at(3, 3).unwrap(),
+            m.at(3, 2).unwrap(),
+        );
+        assert!(!line_of_sight(&m, a, corner));
+        assert!(line_of_sight_open(&m, a, corner));
+        assert!(line_of_sight_open(&m, corner, a));
+        assert!(!line_of_sight(&m, a, through));
+        assert!(!line_of_sight_open(&m, a, through));
+        // Open sight along a row of free cells beside the cabinets: (2, 0) to (2, 4).
+        assert!(line_of_sight_open(
+            &m,
+            m.at(2, 0).unwrap(),
+            m.at(2, 4).unwrap()
+        ));
     }
 }
