@@ -448,14 +448,48 @@ fn coverage_child_without_a_parent() {
     );
 }
 
-#[test]
-fn coverage_parent_without_a_coverage_table() {
-    let text = SCENARIO
+/// The base scenario with its robot made a parent running the coverage mission.
+fn parent_scenario() -> String {
+    SCENARIO
         .replace("model = \"ctbot\"", "model = \"parent\"")
         .replace(
             "mission = { kind = \"grid_goals\", goals = [[1, 1]] }",
             "mission = { kind = \"coverage_parent\" }",
-        );
+        )
+}
+
+#[test]
+fn unknown_view_rule() {
+    let text = format!("{SCENARIO}\n[coverage]\nviews = \"some_grabs\"\n");
+    let (_, e, _d) = load(&text, None);
+    assert_names(
+        &e,
+        "broken.toml",
+        line_of(&text, "views"),
+        "coverage.views",
+        "some_grabs",
+        "\"every_grab\" or \"start_points\"",
+    );
+}
+
+#[test]
+fn paper_view_rule_in_a_mission_the_simulator_runs() {
+    // "start_points" checks no grab: a mission whose images are rendered must not use it.
+    let text = parent_scenario() + "\n[coverage]\nviews = \"start_points\"\n";
+    let (_, e, _d) = load(&text, None);
+    assert_names(
+        &e,
+        "broken.toml",
+        line_of(&text, "views"),
+        "coverage.views",
+        "start_points",
+        "\"every_grab\" in a scenario whose parent runs the mission",
+    );
+}
+
+#[test]
+fn coverage_parent_without_a_coverage_table() {
+    let text = parent_scenario();
     let (_, e, _d) = load(&text, None);
     assert_names(
         &e,

@@ -1,31 +1,38 @@
 //! Executing a mission at the grid level, one timestep at a time (Sections IV.C-D, V.A).
 //!
 //! Decisions:
-//! * **Timestep.** A timestep is the time of one up/down/left/right step of a robot. While
-//!   mapping, all children step in parallel (a child whose next vertex is occupied waits),
-//!   which is why more children need fewer mapping timesteps, as in the paper. Coordination
-//!   moves (stage transitions, following) are made one robot at a time, so they cost one
-//!   timestep per step: this keeps every transition free of collisions without a
-//!   multi-robot path planner, and makes coordination grow with the number of children, as
-//!   the paper observes. The parent's steps are coordination timesteps.
+//! * **Timestep.** A timestep is the time of one up/down/left/right step of a robot, and
+//!   every robot may step in the same timestep. While mapping, the children walk their
+//!   roadmaps in parallel (a child whose next vertex is taken waits, or walks around a
+//!   robot that will not move). Stage transitions move the team together ([`together`]):
+//!   the parent tracks and teleoperates all children at once, as in the behaviour-based
+//!   formations of the paper's [17], so a transition costs about as many timesteps as its
+//!   longest walk, and coordination grows with N only by the time to gather and spread
+//!   (until 2026-11 coordination moved one robot at a time and grew linearly with N). Robots
+//!   step in a fixed order onto vertices nobody holds at that moment: a train (a robot
+//!   entering the vertex another leaves) is allowed, a shared vertex or a swap never.
 //! * **Mapping vs coordination.** Timesteps of a stage's mapping (children walking their
 //!   roadmaps and grabbing) are mapping timesteps; moving between stages, the following
 //!   behaviour included, are coordination timesteps. Reaching a stage's start points is
 //!   mapping (it happens inside the stage).
 //! * **Image grabs** take no extra timestep. A child grabs when it stands on an unimaged
-//!   child vertex of the stage and no other robot is in its view (the view cone of
-//!   [`crate::visibility`], robots as discs). Otherwise it waits; if the whole team is stuck
-//!   the grab is deferred and the child walks on. Deferred vertices are mopped up one at a
-//!   time at the end of the stage: the nearest child goes there, robots in its view step
-//!   out of it, then it grabs.
+//!   child vertex of the stage and, under [`ViewRule::EveryGrab`], no other robot is in its
+//!   view (the view cone of [`crate::visibility`], robots as discs, at any distance). A child
+//!   with a walking robot in view waits for it to pass; one whose view holds a robot that
+//!   will not move this round (the parent, a child done or itself waiting) leaves the vertex
+//!   and walks on. A stage runs in rounds: what a round could not image gets new roadmaps
+//!   from where the children stand, while a round images anything; the rest is mopped up one
+//!   vertex at a time (the nearest child goes there, robots in its view step out of it, it
+//!   grabs). Under [`ViewRule::StartPoints`] (the paper's rule, for its grid simulation)
+//!   only the stages' starting points are kept out of each other's views.
 //! * **C(t)** is LOS_free(v_p^t) minus V_p minus what is already imaged, so a vertex a stage
 //!   could not image is tried again by later stages; what no stage images is reported.
-//! * **Transitions (Eq. 8).** H = LOS(v_p^t) ∩ LOS(v_p^(t+1)) without the parent's path and
-//!   the two parent vertices. If the children can take N distinct vertices of H, they move
-//!   there (nearest first), then the parent drives its shortest path (children in its way
-//!   make way). Otherwise a following
-//!   behaviour is counted: children standing on the parent's path step off it, the parent
-//!   drives, and the children follow it into LOS(v_p^(t+1)), nearest first.
+//! * **Transitions (Eq. 8).** H = LOS(v_p^t) ∩ LOS(v_p^(t+1)) without the two parent
+//!   vertices. If |H| >= N and the children can get to N distinct vertices of it (those off
+//!   the parent's path when there are N of them), they move there together, then the parent
+//!   drives its shortest path (children in its way make way). Otherwise a following
+//!   behaviour is counted: children on the parent's path step off it, the parent drives with
+//!   the children in file behind it, and they spread into LOS(v_p^(t+1)) together.
 //! * **Start.** The parent first drives from its start vertex to the first parent vertex in
 //!   the same way. Children given no start vertices stand on the free vertices nearest the
 //!   parent (breadth-first order) that are not dead ends.
@@ -43,11 +50,12 @@ use crate::map::{Map, Vertex};
 use crate::roadmap::stage_roadmaps;
 use crate::select::{select_parent_vertices, tour};
 use crate::visibility::{in_view, Visibility};
-use crate::CoverageParams;
+use crate::{CoverageParams, ViewRule};
 use serde::Serialize;
 
 mod moves;
 mod stage;
+mod together;
 
 /// Which part of the mission a timestep belongs to.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
@@ -272,90 +280,6 @@ impl Run<'_> {
             self.walk_pushing(b, phase, &off, &keep, depth + 1)?;
         }
         Err(stuck)
-    }
-
-    fn transition(&mut self, to: Vertex) -> Result<bool, PlanError> {
-        let from = self.pos[0];
-        if from == to {
-            return Ok(false);
-        }
-        let n = self.pos.len() - 1;
-        let parent_path =
-            self.map
-                .path_to(from, |v| v == to, |_| true)
-                .ok_or(PlanError::Stuck {
-                    stage: self.stage,
-                    robot: 0,
-                    target: Some(to),
-                })?;
-        let mut on_path = vec![false; self.map.len()];
-        for &v in &parent_path {
-            on_path[v] = true;
-        }
-        let mut in_h = vec![false; self.map.len()];
-        for &v in &self.vis.los[from] {
-            if !on_path[v] && self.vis.los[to].binary_search(&v).is_ok() {
-                in_h[v] = true;
-            }
-        }
-        let h_count = in_h.iter().filter(|x| **x).count();
-        let mut following = h_count < n;
-        if !following {
-            // Children to distinct vertices of H, nearest first, staying in the parent's sight.
-            let los_from: Vec<bool> = {
-                let mut s = vec![false; self.map.len()];
-                for &v in &self.vis.los[from] {
-                    s[v] = true;
-                }
-                s
-            };
-            let order = self.nearest_first(|v| in_h[v]);
-            let saved = (self.pos.clone(), self.frames.len(), self.robot_steps);
-            for j in order {
-                let ok = self
-                    .walk_alone(
-                        j,
-                        Phase::Coordination,
-                        |v| in_h[v],
-                        |v| los_from[v] || in_h[v],
-                    )
-                    .is_ok();
-                if !ok {
-                    // Undo and fall back to following.
-                    self.pos = saved.0.clone();
-                    self.frames.truncate(saved.1);
-                    self.robot_steps = saved.2;
-                    following = true;
-                    break;
-                }
-            }
-        }
-        if following {
-            // Children step off the parent's path where they can (those that cannot are
-            // moved ahead of the parent as it drives), then follow it after the parent.
-            for j in 1..=n {
-                if on_path[self.pos[j]] && self.pos[j] != from {
-                    let _ = self.walk_alone(j, Phase::Coordination, |v| !on_path[v], |_| true);
-                }
-            }
-        }
-        // The parent drives, moving children out of its way and backing off to let a
-        // pocket of children out where it must.
-        self.drive_parent(to, Phase::Coordination, &|_| false)?;
-        if following {
-            let mut around = vec![false; self.map.len()];
-            for &v in &self.vis.los[to] {
-                around[v] = true;
-            }
-            // A child that cannot get into LOS(to) (the parent's vertex cuts it off) stays
-            // where it is; the stage's roadmaps start from wherever the children stand.
-            for j in self.nearest_first(|v| around[v]) {
-                if !around[self.pos[j]] {
-                    let _ = self.walk_alone(j, Phase::Coordination, |v| around[v], |_| true);
-                }
-            }
-        }
-        Ok(following)
     }
 }
 

@@ -76,6 +76,20 @@ impl Direction {
     }
 }
 
+/// Where the planner keeps robots out of the children's images.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ViewRule {
+    /// No robot the grabbing child's camera could see, at any distance, at every grab: the
+    /// images are free of robots. Missions whose images are rendered use this.
+    #[default]
+    EveryGrab,
+    /// As far as the paper states the rule (Section IV.C): no stage's starting point is in
+    /// the view of another. Grabs are not checked. The grid simulation of Tables I-II and
+    /// Figs. 3-4 (Section V.A) under the paper's own model.
+    StartPoints,
+}
+
 /// Parameters of the team and the mapping.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct CoverageParams {
@@ -96,6 +110,9 @@ pub struct CoverageParams {
     pub children: usize,
     /// Candidate distance f as a multiple of r_los (Eq. 6; 2 in the seed).
     pub f_factor: f64,
+    /// Where robots are kept out of the images.
+    #[serde(default)]
+    pub views: ViewRule,
 }
 
 impl Default for CoverageParams {
@@ -109,6 +126,7 @@ impl Default for CoverageParams {
             child_radius_m: 0.06,
             children: 3,
             f_factor: 2.0,
+            views: ViewRule::EveryGrab,
         }
     }
 }

@@ -50,7 +50,7 @@ use crate::mcl::{Mcl, MclParams};
 use crate::report::{DatabaseImage, TeamReport, TEAM_ARTIFACT};
 use crate::team::{Order, TeamMsg};
 use crate::visibility::line_of_sight;
-use crate::{plan, CoverageParams, Direction, Plan};
+use crate::{plan, CoverageParams, Direction, Plan, ViewRule};
 use hetsim_msgs::{
     Artifact, Command, CoverageMission, InboxGuard, InputError, Mission, Outgoing, Pose,
     PoseStamped, RobotStack, SensorMsg, StackStatus,
@@ -256,6 +256,8 @@ impl ParentStack {
             child_radius_m: mission.child_radius_m,
             children: mission.children.len().max(1),
             f_factor: mission.f_factor,
+            // Its children's images are the database: no robot in any of them.
+            views: ViewRule::EveryGrab,
         };
         let children = mission
             .children

@@ -3,11 +3,12 @@
 use crate::execute::Plan;
 use crate::map::{Map, Vertex};
 use crate::visibility::{in_view, Visibility};
-use crate::CoverageParams;
+use crate::{CoverageParams, ViewRule};
 
 /// Checks, frame by frame: every move is one up/down/left/right step onto a free vertex; no
 /// two robots share a vertex and no two swap; every grab is by a child standing on that
-/// vertex, in the parent's LOS_free, with no other robot in view, and each vertex is grabbed
+/// vertex, in the parent's LOS_free, with no other robot in view (under
+/// [`ViewRule::EveryGrab`]), and each vertex is grabbed
 /// once; children never stand on the parent's vertex; and the imaged vertices are exactly
 /// V \ V_p minus the reported uncoverable and unreached ones. Returns the first violation.
 pub fn validate(map: &Map, params: &CoverageParams, plan: &Plan) -> Result<(), Violation> {
@@ -86,7 +87,10 @@ fn check(map: &Map, params: &CoverageParams, plan: &Plan) -> Result<(), String> 
                 ));
             }
             for (k, &u) in pos.iter().enumerate() {
-                if k != robot && in_view(map, params, v, u, radius(k)) {
+                if params.views == ViewRule::EveryGrab
+                    && k != robot
+                    && in_view(map, params, v, u, radius(k))
+                {
                     return Err(format!("timestep {t}: robot {k} at {:?} is in the view of child {child} grabbing at {:?}", map.cell(u), map.cell(v)));
                 }
             }

@@ -83,6 +83,11 @@ pub struct CoverageSpec {
     pub children: Option<usize>,
     /// Candidate distance f as a multiple of r_los (Eq. 6).
     pub f_factor: f64,
+    /// Where the planner keeps robots out of the children's images: "every_grab" (no robot
+    /// the camera could see, at any distance, at any grab; the only choice for a mission the
+    /// simulator runs) or "start_points" (the rule as the paper states it: starting points
+    /// only; for the grid simulation of its Tables I-II and Figs. 3-4).
+    pub views: String,
 }
 
 impl Default for CoverageSpec {
@@ -94,6 +99,7 @@ impl Default for CoverageSpec {
             view_margin_deg: 0.0,
             children: None,
             f_factor: 2.0,
+            views: "every_grab".to_string(),
         }
     }
 }
@@ -442,6 +448,32 @@ impl ScenarioFile {
             }
             if let Some(n) = cov.children {
                 c.range(&at("children"), n as f64, 1.0, 32.0)?;
+            }
+            match cov.views.as_str() {
+                "every_grab" => {}
+                "start_points" => {
+                    if let Some(i) = self
+                        .robots
+                        .iter()
+                        .position(|r| matches!(r.mission, MissionSpec::CoverageParent))
+                    {
+                        return Err(c.error_at(
+                            &at("views"),
+                            format!(
+                                "\"start_points\" (robot {} runs the mission, and its images are rendered)",
+                                self.robots[i].name
+                            ),
+                            "\"every_grab\" in a scenario whose parent runs the mission; \"start_points\" only for grid planning (sweeps, `hetsim regress`)",
+                        ));
+                    }
+                }
+                other => {
+                    return Err(c.error_at(
+                        &at("views"),
+                        format!("\"{other}\""),
+                        "\"every_grab\" or \"start_points\"",
+                    ))
+                }
             }
         }
         let at = |f: &'static str| ["comms", f];

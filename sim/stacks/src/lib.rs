@@ -11,7 +11,7 @@
 //! | `coverage_child` | | [`hetsim_coverage::ChildStack`] |
 
 use hetsim_core::Streams;
-use hetsim_coverage::{CoverageParams, Direction};
+use hetsim_coverage::{CoverageParams, Direction, ViewRule};
 use hetsim_msgs::{Mission, RobotStack};
 use hetsim_pilot::{
     lawnmower, GroundPilot, GroundPilotParams, HeliPilot, HeliPilotParams, Steering,
@@ -457,5 +457,9 @@ pub fn coverage_params(scenario: &Scenario) -> CoverageParams {
             })
             .max(1),
         f_factor: spec.f_factor,
+        views: match spec.views.as_str() {
+            "start_points" => ViewRule::StartPoints,
+            _ => ViewRule::EveryGrab,
+        },
     }
 }

@@ -391,11 +391,11 @@ impl Run<'_> {
 }
 
 #[cfg(test)]
-mod tests {
+pub(super) mod tests {
     use super::*;
 
     /// A run with robots placed by letter on a text map (`P` the parent, `k` children).
-    fn run_on<'a>(
+    pub(in crate::execute) fn run_on<'a>(
         map: &'a Map,
         params: &'a CoverageParams,
         vis: &'a Visibility,

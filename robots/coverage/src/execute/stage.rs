@@ -19,113 +19,37 @@ impl Run<'_> {
         order.into_iter().map(|(_, j)| j).collect()
     }
 
-    /// Walks the stage's roadmaps in parallel, then mops up deferred vertices.
+    /// Walks the stage's roadmaps in parallel, in rounds, then mops up what is left one
+    /// vertex at a time.
+    ///
+    /// A round builds roadmaps for the child vertices still to be imaged from wherever the
+    /// children stand and walks them in parallel; a grab the round could not make (a view
+    /// it could not clear) is left to the next round. Rounds go on while each images
+    /// something; the rest is mopped up.
     pub(super) fn map_stage(&mut self, child_set: &[Vertex]) -> Result<Vec<Vertex>, PlanError> {
         let parent = self.pos[0];
         let mut los_parent = vec![false; self.map.len()];
         for &v in &self.vis.los[parent] {
             los_parent[v] = true;
         }
-        let mut in_set = vec![false; self.map.len()];
-        for &c in child_set {
-            in_set[c] = true;
-        }
-        let children: Vec<Vertex> = self.pos[1..].to_vec();
-        let roadmaps = stage_roadmaps(
-            self.map,
-            self.params,
-            &los_parent,
-            parent,
-            &children,
-            child_set,
-        );
-        let mut walks = roadmaps.walks;
-        let n = walks.len();
-        let mut idx = vec![0usize; n];
-        let mut pending = vec![false; n];
-        let mut deferred: Vec<Vertex> = Vec::new();
+        let n = self.pos.len() - 1;
         let mut imaged_here = Vec::new();
-        loop {
-            let active = (0..n).any(|j| pending[j] || idx[j] + 1 < walks[j].len());
-            if !active {
+        let mut left: Vec<Vertex> = child_set.to_vec();
+        let mut unreachable = Vec::new();
+        while !left.is_empty() && n > 0 {
+            let children: Vec<Vertex> = self.pos[1..].to_vec();
+            let roadmaps =
+                stage_roadmaps(self.map, self.params, &los_parent, parent, &children, &left);
+            unreachable.extend(roadmaps.unreachable);
+            let before = imaged_here.len();
+            self.walk_roadmaps(roadmaps.walks, &left, &mut imaged_here);
+            if imaged_here.len() == before {
                 break;
             }
-            let mut moved = false;
-            for j in 0..n {
-                let robot = j + 1;
-                if pending[j] || idx[j] + 1 >= walks[j].len() {
-                    continue;
-                }
-                let next = walks[j][idx[j] + 1];
-                if !self.occupied_by_other(robot, next) {
-                    self.pos[robot] = next;
-                    idx[j] += 1;
-                    self.robot_steps += 1;
-                    moved = true;
-                }
-            }
-            let mut grabs = Vec::new();
-            for (j, waiting) in pending.iter_mut().enumerate() {
-                let (robot, at) = (j + 1, self.pos[j + 1]);
-                *waiting = false;
-                if in_set[at] && !self.imaged[at] {
-                    if self.view_blocked(robot, at) {
-                        *waiting = true;
-                    } else {
-                        self.imaged[at] = true;
-                        imaged_here.push(at);
-                        grabs.push((j, at));
-                    }
-                }
-            }
-            if moved || !grabs.is_empty() {
-                self.push(Phase::Mapping, grabs);
-                continue;
-            }
-            // Nobody could do anything: defer one blocked grab, or re-route one blocked walk.
-            if let Some(j) = (0..n).find(|&j| pending[j]) {
-                pending[j] = false;
-                deferred.push(self.pos[j + 1]);
-                // Mark as handled for this walk; the mop-up grabs it.
-                in_set[self.pos[j + 1]] = false;
-                continue;
-            }
-            let j = (0..n)
-                .find(|&j| idx[j] + 1 < walks[j].len())
-                .expect("an active child exists");
-            let robot = j + 1;
-            let rest: Vec<Vertex> = walks[j][idx[j] + 1..].to_vec();
-            let reroute = rest.iter().enumerate().find_map(|(k, &target)| {
-                if self.occupied_by_other(robot, target) {
-                    return None;
-                }
-                self.map
-                    .path_to(
-                        self.pos[robot],
-                        |v| v == target,
-                        |v| v != parent && !self.occupied_by_other(robot, v),
-                    )
-                    .map(|p| (k, p))
-            });
-            match reroute {
-                Some((k, p)) => {
-                    let mut walk = walks[j][..=idx[j]].to_vec();
-                    walk.extend(p.into_iter().skip(1));
-                    walk.extend(rest.into_iter().skip(k + 1));
-                    walks[j] = walk;
-                }
-                None => {
-                    deferred.extend(
-                        rest.iter()
-                            .copied()
-                            .filter(|&v| in_set[v] && !self.imaged[v]),
-                    );
-                    walks[j].truncate(idx[j] + 1);
-                }
-            }
+            left.retain(|&c| !self.imaged[c] && !unreachable.contains(&c));
         }
+        let mut deferred = unreachable;
         // Mop-up, one vertex at a time.
-        deferred.extend(roadmaps.unreachable);
         deferred.extend(child_set.iter().copied().filter(|&c| !self.imaged[c]));
         deferred.sort_unstable();
         deferred.dedup();
@@ -142,6 +66,131 @@ impl Run<'_> {
             }
         }
         Ok(imaged_here)
+    }
+
+    /// One round: the children walk `walks` in parallel, one step each per timestep (a
+    /// child whose next vertex is taken waits), and grab on every vertex of `set` they
+    /// reach whose view is clear. A child whose view holds a robot that is walking waits
+    /// for it to pass; one whose view holds a robot that will not move this round (the
+    /// parent, a child done or itself waiting) leaves the vertex to the next round and
+    /// walks on. When nobody can move, one blocked walk is re-routed or cut short.
+    fn walk_roadmaps(
+        &mut self,
+        mut walks: Vec<Vec<Vertex>>,
+        set: &[Vertex],
+        imaged_here: &mut Vec<Vertex>,
+    ) {
+        let parent = self.pos[0];
+        let mut in_set = vec![false; self.map.len()];
+        for &c in set {
+            in_set[c] = true;
+        }
+        let n = walks.len();
+        let mut idx = vec![0usize; n];
+        let mut pending = vec![false; n];
+        loop {
+            let active = (0..n).any(|j| pending[j] || idx[j] + 1 < walks[j].len());
+            if !active {
+                break;
+            }
+            let mut moved = false;
+            for j in 0..n {
+                let robot = j + 1;
+                if pending[j] || idx[j] + 1 >= walks[j].len() {
+                    continue;
+                }
+                let mut next = walks[j][idx[j] + 1];
+                // A robot that will not move this round (the parent, a child done or
+                // waiting to grab) is walked around at once.
+                let settled =
+                    |q: usize| q == 0 || pending[q - 1] || idx[q - 1] + 1 >= walks[q - 1].len();
+                if (0..self.pos.len()).any(|q| q != robot && self.pos[q] == next && settled(q)) {
+                    if let Some(walk) = self.reroute(robot, &walks[j], idx[j], parent) {
+                        walks[j] = walk;
+                        next = walks[j][idx[j] + 1];
+                    }
+                }
+                if !self.occupied_by_other(robot, next) {
+                    self.pos[robot] = next;
+                    idx[j] += 1;
+                    self.robot_steps += 1;
+                    moved = true;
+                }
+            }
+            let mut grabs = Vec::new();
+            let was_pending = std::mem::replace(&mut pending, vec![false; n]);
+            for (j, waiting) in pending.iter_mut().enumerate() {
+                let (robot, at) = (j + 1, self.pos[j + 1]);
+                if !in_set[at] || self.imaged[at] {
+                    continue;
+                }
+                let in_my_view: Vec<usize> = (0..self.pos.len())
+                    .filter(|&k| {
+                        self.params.views == ViewRule::EveryGrab
+                            && k != robot
+                            && in_view(self.map, self.params, at, self.pos[k], self.radius(k))
+                    })
+                    .collect();
+                if in_my_view.is_empty() {
+                    self.imaged[at] = true;
+                    imaged_here.push(at);
+                    grabs.push((j, at));
+                } else if in_my_view
+                    .iter()
+                    .all(|&k| k > 0 && idx[k - 1] + 1 < walks[k - 1].len() && !was_pending[k - 1])
+                {
+                    *waiting = true;
+                } else {
+                    // Left for the next round.
+                    in_set[at] = false;
+                }
+            }
+            if moved || !grabs.is_empty() {
+                self.push(Phase::Mapping, grabs);
+                continue;
+            }
+            // Nobody could do anything: give up one blocked grab, or re-route one walk.
+            if let Some(j) = (0..n).find(|&j| pending[j]) {
+                pending[j] = false;
+                in_set[self.pos[j + 1]] = false;
+                continue;
+            }
+            let j = (0..n)
+                .find(|&j| idx[j] + 1 < walks[j].len())
+                .expect("an active child exists");
+            let robot = j + 1;
+            match self.reroute(robot, &walks[j], idx[j], parent) {
+                Some(walk) => walks[j] = walk,
+                None => walks[j].truncate(idx[j] + 1),
+            }
+        }
+    }
+
+    /// `walk` (child `robot` stands on `walk[at]`) re-routed around the other robots: to the
+    /// first vertex still ahead on it that no robot holds, by a shortest path through free
+    /// vertices (never the parent's), then on as before. `None` if there is no such path.
+    fn reroute(
+        &self,
+        robot: usize,
+        walk: &[Vertex],
+        at: usize,
+        parent: Vertex,
+    ) -> Option<Vec<Vertex>> {
+        let rest = &walk[at + 1..];
+        rest.iter().enumerate().find_map(|(k, &target)| {
+            if target == self.pos[robot] || self.occupied_by_other(robot, target) {
+                return None;
+            }
+            let path = self.map.path_to(
+                self.pos[robot],
+                |v| v == target,
+                |v| v != parent && !self.occupied_by_other(robot, v),
+            )?;
+            let mut new = walk[..=at].to_vec();
+            new.extend(path.into_iter().skip(1));
+            new.extend(rest.iter().skip(k + 1));
+            Some(new)
+        })
     }
 
     /// Brings the nearest child to `c`, clears its view, and returns the child's index if it
@@ -177,8 +226,12 @@ impl Run<'_> {
         Ok(Some(robot - 1))
     }
 
-    /// Everyone else leaves the view of child `robot` on `c`; whether its view is clear.
+    /// Everyone else leaves the view of child `robot` on `c`; whether its view is clear
+    /// (always, under [`ViewRule::StartPoints`], which does not check grabs).
     fn clear_view(&mut self, robot: usize, c: Vertex) -> bool {
+        if self.params.views == ViewRule::StartPoints {
+            return self.pos[robot] == c;
+        }
         let n = self.pos.len() - 1;
         let watcher = self.pos[0];
         // Robots in its view step out of it (a step aside can bring another one in, so

@@ -1,0 +1,376 @@
+//! Stage transitions with the team moving together (Sections IV.C-D).
+//!
+//! The parent tracks and teleoperates every child at once, so in a transition all robots
+//! that have somewhere to go step in the same timestep, as in the behaviour-based
+//! formations of the paper's [17] (each robot steers towards its own target; the team's
+//! shape follows from the targets):
+//! * **Through H (Eq. 8).** Each child, nearest to H first, takes the nearest vertex of H
+//!   no other child took; they all step towards their vertices at once; then the parent
+//!   drives.
+//! * **Following behaviour.** Children on the parent's path step off it together. The
+//!   parent drives with the children in file behind it: each timestep the parent steps on,
+//!   then the k-th child (nearest the parent first) steps towards the vertex the parent held
+//!   k timesteps before. When the parent has arrived, the children spread to the nearest
+//!   free vertices of its line of sight together.
+//!
+//! In a timestep the robots step in a fixed order onto vertices nobody holds at that moment,
+//! so a robot may enter the vertex another left in the same timestep (a train, which the
+//! lockstep parent releases only once the robot ahead has arrived) but two robots never
+//! share or swap a vertex. Where moving together gets stuck (a corridor where robots must
+//! pass each other), the rest is done one robot at a time with the moves of [`super::moves`].
+
+use super::*;
+use std::collections::HashMap;
+
+impl Run<'_> {
+    /// Distinct targets among the vertices where `goal` holds for `robots`, in the order
+    /// given: each takes the nearest one not yet taken (geodesic through `within`, or
+    /// through anything for a robot already outside it) that no robot outside `robots`
+    /// stands on. Robots with no such target are left out.
+    fn assign(
+        &self,
+        robots: &[usize],
+        goal: &dyn Fn(Vertex) -> bool,
+        within: &dyn Fn(Vertex) -> bool,
+    ) -> Vec<(usize, Vertex)> {
+        let mut taken = vec![false; self.map.len()];
+        for (q, &p) in self.pos.iter().enumerate() {
+            if !robots.contains(&q) {
+                taken[p] = true;
+            }
+        }
+        let mut goals = Vec::with_capacity(robots.len());
+        for &k in robots {
+            // A child already out of the region may cross anything to get back.
+            let roam = !within(self.pos[k]);
+            let target = self
+                .map
+                .path_to(
+                    self.pos[k],
+                    |v| goal(v) && !taken[v],
+                    |v| roam || within(v) || goal(v),
+                )
+                .and_then(|path| path.last().copied());
+            if let Some(t) = target {
+                taken[t] = true;
+                goals.push((k, t));
+            }
+        }
+        goals
+    }
+
+    /// One step of `robot` towards the target whose distances are `field`: onto the free
+    /// neighbour nearest the target, if it is nearer than where the robot stands and not
+    /// `barred`. Returns whether it moved.
+    fn step_towards(
+        &mut self,
+        robot: usize,
+        field: &[usize],
+        barred: &dyn Fn(Vertex) -> bool,
+    ) -> bool {
+        let here = self.pos[robot];
+        let next = self
+            .map
+            .neighbours(here)
+            .filter(|&u| field[u] < field[here] && !barred(u) && !self.occupied_by_other(robot, u))
+            .min_by_key(|&u| field[u]);
+        if let Some(u) = next {
+            self.pos[robot] = u;
+            self.robot_steps += 1;
+        }
+        next.is_some()
+    }
+
+    /// Moves every robot of `goals` to its target together, one step each per timestep
+    /// (geodesic through `within`, or through anything for a robot that starts outside it). Returns whether all arrived; when a timestep moves
+    /// nobody, the robots stay where they got to.
+    fn move_together(
+        &mut self,
+        goals: &[(usize, Vertex)],
+        phase: Phase,
+        within: &dyn Fn(Vertex) -> bool,
+    ) -> bool {
+        let fields: Vec<Vec<usize>> = goals
+            .iter()
+            .map(|&(k, t)| {
+                let roam = !within(self.pos[k]);
+                self.map.distances(t, |v| roam || within(v))
+            })
+            .collect();
+        loop {
+            if goals.iter().all(|&(k, t)| self.pos[k] == t) {
+                return true;
+            }
+            let mut moved = false;
+            for (g, &(k, t)) in goals.iter().enumerate() {
+                if self.pos[k] != t {
+                    moved |= self.step_towards(k, &fields[g], &|_| false);
+                }
+            }
+            if !moved {
+                return false;
+            }
+            self.push(phase, Vec::new());
+        }
+    }
+
+    /// Children `robots` to distinct vertices where `goal` holds, together; those that could
+    /// not get there together walk one at a time (pushing others aside). Returns whether
+    /// every one of them stands on a `goal` vertex.
+    fn gather(
+        &mut self,
+        robots: &[usize],
+        goal: &dyn Fn(Vertex) -> bool,
+        within: &dyn Fn(Vertex) -> bool,
+    ) -> bool {
+        let goals = self.assign(robots, goal, within);
+        self.move_together(&goals, Phase::Coordination, within);
+        let mut all = true;
+        for &j in robots {
+            if !goal(self.pos[j]) {
+                let roam = !within(self.pos[j]);
+                let r = self.walk_alone(j, Phase::Coordination, goal, |v| {
+                    roam || within(v) || goal(v)
+                });
+                all &= r.is_ok();
+            }
+        }
+        all
+    }
+
+    /// The parent drives a shortest path to `to` with the children in file behind it;
+    /// from where formation driving gets stuck, the parent drives on alone, moving children
+    /// out of its way. The k-th child (nearest the parent first) heads for the vertex the
+    /// parent held k timesteps before, never onto the part of the path still ahead.
+    fn drive_in_formation(&mut self, to: Vertex) -> Result<(), PlanError> {
+        // From where the parent stands now (a child stepping off its path may have pushed
+        // it aside).
+        let Some(path) = self.map.path_to(self.pos[0], |v| v == to, |_| true) else {
+            return self.drive_parent(to, Phase::Coordination, &|_| false);
+        };
+        let file = self.nearest_first(|v| v == path[0]);
+        let mut fields: HashMap<Vertex, Vec<usize>> = HashMap::new();
+        let mut index_on_path = vec![usize::MAX; self.map.len()];
+        for (i, &v) in path.iter().enumerate() {
+            index_on_path[v] = i;
+        }
+        let mut i = 0;
+        while i + 1 < path.len() && !self.occupied_by_other(0, path[i + 1]) {
+            i += 1;
+            self.pos[0] = path[i];
+            self.robot_steps += 1;
+            let ahead = |u: Vertex| index_on_path[u] != usize::MAX && index_on_path[u] > i;
+            for (k, &j) in file.iter().enumerate() {
+                let slot = path[i.saturating_sub(k + 1)];
+                if self.pos[j] != slot {
+                    let field = fields
+                        .entry(slot)
+                        .or_insert_with(|| self.map.distances(slot, |_| true))
+                        .clone();
+                    self.step_towards(j, &field, &ahead);
+                }
+            }
+            self.push(Phase::Coordination, Vec::new());
+        }
+        self.drive_parent(to, Phase::Coordination, &|_| false)
+    }
+
+    /// Moves the team from the parent's vertex to `to`: through H, or by the following
+    /// behaviour (returns `true` then).
+    pub(super) fn transition(&mut self, to: Vertex) -> Result<bool, PlanError> {
+        let from = self.pos[0];
+        if from == to {
+            return Ok(false);
+        }
+        let n = self.pos.len() - 1;
+        let stuck = PlanError::Stuck {
+            stage: self.stage,
+            robot: 0,
+            target: Some(to),
+        };
+        let parent_path = self.map.path_to(from, |v| v == to, |_| true).ok_or(stuck)?;
+        let mut on_path = vec![false; self.map.len()];
+        for &v in &parent_path {
+            on_path[v] = true;
+        }
+        // H (Eq. 8) as the paper defines it decides between the two; the children prefer
+        // its vertices off the parent's path, and stand on the path only where H off it is
+        // too small (the parent then moves them aside as it drives).
+        let mut in_h = vec![false; self.map.len()];
+        let mut h_count = 0;
+        let mut off_path = 0;
+        for &v in &self.vis.los[from] {
+            if v != to && self.vis.los[to].binary_search(&v).is_ok() {
+                in_h[v] = true;
+                h_count += 1;
+                off_path += usize::from(!on_path[v]);
+            }
+        }
+        if off_path >= n {
+            for v in 0..self.map.len() {
+                in_h[v] &= !on_path[v];
+            }
+        }
+        let mut following = h_count < n;
+        if !following {
+            // Children to distinct vertices of H, staying in the parent's sight.
+            let mut los_from = vec![false; self.map.len()];
+            for &v in &self.vis.los[from] {
+                los_from[v] = true;
+            }
+            let order = self.nearest_first(|v| in_h[v]);
+            let saved = (self.pos.clone(), self.frames.len(), self.robot_steps);
+            if !self.gather(&order, &|v| in_h[v], &|v| los_from[v] || in_h[v]) {
+                // Undo and fall back to following.
+                self.pos = saved.0;
+                self.frames.truncate(saved.1);
+                self.robot_steps = saved.2;
+                following = true;
+            }
+        }
+        if !following {
+            // The parent drives, children in its way making way.
+            self.drive_parent(to, Phase::Coordination, &|_| false)?;
+            return Ok(false);
+        }
+        // Children on the parent's path step off it (one that cannot is moved ahead of the
+        // parent as it drives), then follow it in file.
+        let on: Vec<usize> = (1..=n).filter(|&j| on_path[self.pos[j]]).collect();
+        let _ = self.gather(&on, &|v| !on_path[v], &|_| true);
+        self.drive_in_formation(to)?;
+        let mut around = vec![false; self.map.len()];
+        for &v in &self.vis.los[to] {
+            around[v] = true;
+        }
+        // A child that cannot get into LOS(to) (the parent's vertex cuts it off) stays where
+        // it is; the stage's roadmaps start from wherever the children stand.
+        let outside: Vec<usize> = self
+            .nearest_first(|v| around[v])
+            .into_iter()
+            .filter(|&j| !around[self.pos[j]])
+            .collect();
+        let _ = self.gather(&outside, &|v| around[v], &|_| true);
+        Ok(true)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::moves::tests::run_on;
+    use super::*;
+
+    /// Every robot moves at most one step per frame onto a free vertex; no two share or
+    /// swap a vertex. Returns the frames in which more than one robot moved.
+    fn frames_moving_several(map: &Map, start: &[Vertex], frames: &[Frame]) -> usize {
+        let mut prev = start.to_vec();
+        let mut several = 0;
+        for (t, f) in frames.iter().enumerate() {
+            let pos = &f.positions;
+            let moved = (0..pos.len()).filter(|&k| prev[k] != pos[k]).count();
+            assert!(moved >= 1, "frame {t}: nobody moved");
+            several += usize::from(moved > 1);
+            for k in 0..pos.len() {
+                assert!(
+                    prev[k] == pos[k] || map.adjacent(prev[k], pos[k]),
+                    "frame {t}: a jump"
+                );
+                assert!(map.is_free(pos[k]));
+                for q in k + 1..pos.len() {
+                    assert_ne!(
+                        pos[k], pos[q],
+                        "frame {t}: robots {k} and {q} share a vertex"
+                    );
+                    assert!(
+                        !(pos[k] == prev[q] && pos[q] == prev[k]),
+                        "frame {t}: robots {k} and {q} swapped"
+                    );
+                }
+            }
+            prev = pos.clone();
+        }
+        several
+    }
+
+    #[test]
+    fn children_move_into_h_together() {
+        // An open room; the next parent vertex is 2 m east. Four children west of the parent
+        // each have a few steps to H: together they need the longest of their walks, not
+        // the sum.
+        let rows = [
+            "..............",
+            "k.............",
+            "k...P.........",
+            "k.............",
+            "k.............",
+        ];
+        let map = Map::from_text(&rows, 0.5);
+        let params = CoverageParams {
+            children: 4,
+            ..CoverageParams::default()
+        };
+        let vis = Visibility::compute(&map, &params);
+        let mut run = run_on(&map, &params, &vis, &rows);
+        let start = run.pos.clone();
+        let to = map.at(8, 2).unwrap();
+        let following = run.transition(to).unwrap();
+        assert!(!following, "H is large in an open room");
+        assert_eq!(run.pos[0], to);
+        let several = frames_moving_several(&map, &start, &run.frames);
+        assert!(several > 0, "nobody moved together");
+        // Each child walked at least 2 steps (H lies within 2 m of both parent vertices);
+        // one at a time they would take at least 8 frames before the parent's 4.
+        let child_steps = run.robot_steps - 4;
+        assert!(child_steps >= 8, "{child_steps}");
+        assert!(
+            run.frames.len() < child_steps + 4,
+            "{} frames for {child_steps} child steps and 4 parent steps",
+            run.frames.len()
+        );
+    }
+
+    #[test]
+    fn children_follow_the_parent_in_file_through_a_corridor() {
+        // Two rooms joined by a one-cell corridor 6 m long: the parent's line of sight at the
+        // two ends does not overlap, so the team follows it (Section IV.D). The children walk
+        // behind it in the same timesteps, so the transition takes little more than the
+        // parent's own path.
+        let rows = [
+            "....#############....",
+            ".k..#############....",
+            "..P..................",
+            ".kk.#############....",
+            "....#############....",
+        ];
+        let map = Map::from_text(&rows, 0.5);
+        let params = CoverageParams {
+            children: 3,
+            ..CoverageParams::default()
+        };
+        let vis = Visibility::compute(&map, &params);
+        let mut run = run_on(&map, &params, &vis, &rows);
+        let start = run.pos.clone();
+        let to = map.at(19, 2).unwrap();
+        let path = map.path_to(start[0], |v| v == to, |_| true).unwrap().len() - 1;
+        assert!(run.transition(to).unwrap(), "a following behaviour");
+        assert_eq!(run.pos[0], to);
+        let several = frames_moving_several(&map, &start, &run.frames);
+        assert!(
+            several * 2 > path,
+            "{several} of {} frames",
+            run.frames.len()
+        );
+        // In file, the children stay at most N vertices behind: the whole transition is the
+        // parent's path, plus gathering and spreading (a few steps per child).
+        assert!(
+            run.frames.len() <= path + 6 * 3,
+            "{} frames for a path of {path}",
+            run.frames.len()
+        );
+        // One at a time, each child would walk the corridor after the parent.
+        assert!(run.frames.len() < 2 * path, "{} frames", run.frames.len());
+        // They all got into the parent's line of sight at the far end.
+        for &c in &run.pos[1..] {
+            assert!(vis.los[to].binary_search(&c).is_ok(), "{:?}", map.cell(c));
+        }
+    }
+}
