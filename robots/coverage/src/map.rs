@@ -133,6 +133,39 @@ impl Map {
         dist
     }
 
+    /// [`Self::distances`], stopped once every vertex of `until` is reached: exact for every
+    /// vertex nearer `from` than the farthest of them (and for them), `usize::MAX` for the
+    /// rest. Enough to walk from any of them to `from` by always stepping to a nearer
+    /// neighbour, or to compare their distances.
+    pub fn distances_until(
+        &self,
+        from: Vertex,
+        passable: impl Fn(Vertex) -> bool,
+        until: &[Vertex],
+    ) -> Vec<usize> {
+        let mut dist = vec![usize::MAX; self.len()];
+        dist[from] = 0;
+        let mut left: Vec<Vertex> = until.to_vec();
+        left.sort_unstable();
+        left.dedup();
+        let mut queue = VecDeque::from([from]);
+        while let Some(v) = queue.pop_front() {
+            if let Ok(i) = left.binary_search(&v) {
+                left.remove(i);
+                if left.is_empty() {
+                    break;
+                }
+            }
+            for n in self.neighbours(v) {
+                if dist[n] == usize::MAX && passable(n) {
+                    dist[n] = dist[v] + 1;
+                    queue.push_back(n);
+                }
+            }
+        }
+        dist
+    }
+
     /// A shortest path from `from` to the first vertex (in BFS order) satisfying `goal`,
     /// through vertices where `passable` holds; both ends included.
     pub fn path_to(
@@ -173,6 +206,39 @@ impl Map {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_search_stopped_at_its_targets_agrees_with_the_whole_one_up_to_them() {
+        let m = Map::from_text(
+            &[
+                "......#...",
+                ".####.#.#.",
+                "......#.#.",
+                "..........",
+                "...#......",
+            ],
+            0.5,
+        );
+        let from = m.at(0, 0).unwrap();
+        let full = m.distances(from, |_| true);
+        let targets = [m.at(4, 0).unwrap(), m.at(2, 4).unwrap()];
+        let part = m.distances_until(from, |_| true, &targets);
+        let reach = targets.iter().map(|&t| full[t]).max().unwrap();
+        for v in m.vertices() {
+            if full[v] < reach || targets.contains(&v) {
+                assert_eq!(part[v], full[v], "{:?}", m.cell(v));
+            } else {
+                assert!(
+                    part[v] == full[v] || part[v] == usize::MAX,
+                    "{:?}",
+                    m.cell(v)
+                );
+            }
+        }
+        // Somewhere beyond the targets was left unsearched.
+        let unsearched = |d: &[usize]| d.iter().filter(|&&x| x == usize::MAX).count();
+        assert!(unsearched(&part) > unsearched(&full));
+    }
 
     #[test]
     fn neighbours_and_distances() {

@@ -84,7 +84,7 @@ pub fn stage_roadmaps(
     let mut owner: Vec<Option<usize>> = vec![None; starts.len()];
     let mut taken = vec![false; children.len()];
     for (k, &s) in starts.iter().enumerate() {
-        let dist = map.distances(s, anywhere);
+        let dist = map.distances_until(s, anywhere, children);
         if let Some(j) = (0..children.len())
             .filter(|&j| !taken[j])
             .min_by_key(|&j| (dist[children[j]], j))

@@ -20,7 +20,6 @@
 //! pass each other), the rest is done one robot at a time with the moves of [`super::moves`].
 
 use super::*;
-use std::collections::HashMap;
 
 impl Run<'_> {
     /// Distinct targets among the vertices where `goal` holds for `robots`, in the order
@@ -94,7 +93,8 @@ impl Run<'_> {
             .iter()
             .map(|&(k, t)| {
                 let roam = !within(self.pos[k]);
-                self.map.distances(t, |v| roam || within(v))
+                self.map
+                    .distances_until(t, |v| roam || within(v), &[self.pos[k]])
             })
             .collect();
         loop {
@@ -149,7 +149,6 @@ impl Run<'_> {
             return self.drive_parent(to, Phase::Coordination, &|_| false);
         };
         let file = self.nearest_first(|v| v == path[0]);
-        let mut fields: HashMap<Vertex, Vec<usize>> = HashMap::new();
         let mut index_on_path = vec![usize::MAX; self.map.len()];
         for (i, &v) in path.iter().enumerate() {
             index_on_path[v] = i;
@@ -163,10 +162,7 @@ impl Run<'_> {
             for (k, &j) in file.iter().enumerate() {
                 let slot = path[i.saturating_sub(k + 1)];
                 if self.pos[j] != slot {
-                    let field = fields
-                        .entry(slot)
-                        .or_insert_with(|| self.map.distances(slot, |_| true))
-                        .clone();
+                    let field = self.map.distances_until(slot, |_| true, &[self.pos[j]]);
                     self.step_towards(j, &field, &ahead);
                 }
             }
