@@ -23,7 +23,7 @@
 //!   and walks on. A stage runs in rounds: what a round could not image gets new roadmaps
 //!   from where the children stand, while a round images anything; the rest is mopped up one
 //!   vertex at a time (the nearest child goes there, robots in its view step out of it, it
-//!   grabs). Under [`ViewRule::StartPoints`] (the paper's rule, for its grid simulation)
+//!   grabs). Under [`ViewRule::StartPoints`] (a relaxation, for comparison with the paper)
 //!   only the stages' starting points are kept out of each other's views.
 //! * **C(t)** is LOS_free(v_p^t) minus V_p minus what is already imaged, so a vertex a stage
 //!   could not image is tried again by later stages; what no stage images is reported.

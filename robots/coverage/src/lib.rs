@@ -81,12 +81,12 @@ impl Direction {
 #[serde(rename_all = "snake_case")]
 pub enum ViewRule {
     /// No robot the grabbing child's camera could see, at any distance, at every grab: the
-    /// images are free of robots. Missions whose images are rendered use this.
+    /// paper's rule ("no robot must stand in the field of view of another robot at the
+    /// instance an image is grabbed", Section II), with the camera's reach.
     #[default]
     EveryGrab,
-    /// As far as the paper states the rule (Section IV.C): no stage's starting point is in
-    /// the view of another. Grabs are not checked. The grid simulation of Tables I-II and
-    /// Figs. 3-4 (Section V.A) under the paper's own model.
+    /// A relaxation for comparison: only a stage's starting points are kept out of each
+    /// other's views (Section IV.C's choice of them); grabs are not checked.
     StartPoints,
 }
 

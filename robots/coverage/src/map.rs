@@ -221,9 +221,12 @@ mod tests {
         );
         let from = m.at(0, 0).unwrap();
         let full = m.distances(from, |_| true);
-        let targets = [m.at(4, 0).unwrap(), m.at(2, 4).unwrap()];
+        // At 6 and 8 steps: a search that stopped at the first target would leave the
+        // second unlabelled.
+        let targets = [m.at(4, 0).unwrap(), m.at(5, 3).unwrap()];
         let part = m.distances_until(from, |_| true, &targets);
         let reach = targets.iter().map(|&t| full[t]).max().unwrap();
+        assert_ne!(full[targets[0]], full[targets[1]]);
         for v in m.vertices() {
             if full[v] < reach || targets.contains(&v) {
                 assert_eq!(part[v], full[v], "{:?}", m.cell(v));

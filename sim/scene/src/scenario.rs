@@ -83,10 +83,10 @@ pub struct CoverageSpec {
     pub children: Option<usize>,
     /// Candidate distance f as a multiple of r_los (Eq. 6).
     pub f_factor: f64,
-    /// Where the planner keeps robots out of the children's images: "every_grab" (no robot
-    /// the camera could see, at any distance, at any grab; the only choice for a mission the
-    /// simulator runs) or "start_points" (the rule as the paper states it: starting points
-    /// only; for the grid simulation of its Tables I-II and Figs. 3-4).
+    /// Where the planner keeps robots out of the children's images: "every_grab" (the paper's
+    /// rule: no robot the camera could see, at any distance, at any grab) or "start_points"
+    /// (a relaxation for comparison: only a stage's starting points; refused in a mission the
+    /// simulator runs, whose images are rendered).
     pub views: String,
 }
 
