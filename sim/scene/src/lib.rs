@@ -8,6 +8,7 @@
 //! the field, the bad value and what is allowed; nothing is run on a refused scenario.
 
 mod check;
+mod coverage_spec;
 mod error;
 mod load;
 mod robot;

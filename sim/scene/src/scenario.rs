@@ -1,6 +1,7 @@
 //! Scenario files (`scenarios/*.toml`): the world, the robots placed in it and their missions.
 
 use crate::check::Checker;
+pub use crate::coverage_spec::CoverageSpec;
 use crate::SceneError;
 use serde::{Deserialize, Serialize};
 
@@ -61,45 +62,6 @@ impl Default for CommsSpec {
             latency_s: 0.02,
             bandwidth_bps: 1.0e6,
             loss: 0.0,
-        }
-    }
-}
-
-/// The `[coverage]` table: the parent/child team's mapping parameters (seed 002).
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, default)]
-pub struct CoverageSpec {
-    /// The parent's line-of-sight radius r_los, metres.
-    pub r_los_m: f64,
-    /// Direction of mapping: "east", "north", "west" or "south".
-    pub direction: String,
-    /// The children's camera opening angle, degrees.
-    pub child_fov_deg: f64,
-    /// Extra angle on each side of the children's view when checking that no robot is in an
-    /// image, degrees (0 in the seed's model; covers the children's heading error when the
-    /// mission runs in the simulator).
-    pub view_margin_deg: f64,
-    /// Number of children N; `None` counts the scenario's c't-Bots.
-    pub children: Option<usize>,
-    /// Candidate distance f as a multiple of r_los (Eq. 6).
-    pub f_factor: f64,
-    /// Where the planner keeps robots out of the children's images: "every_grab" (the paper's
-    /// rule: no robot the camera could see, at any distance, at any grab) or "start_points"
-    /// (a relaxation for comparison: only a stage's starting points; refused in a mission the
-    /// simulator runs, whose images are rendered).
-    pub views: String,
-}
-
-impl Default for CoverageSpec {
-    fn default() -> Self {
-        Self {
-            r_los_m: 2.0,
-            direction: "east".to_string(),
-            child_fov_deg: 80.0,
-            view_margin_deg: 0.0,
-            children: None,
-            f_factor: 2.0,
-            views: "every_grab".to_string(),
         }
     }
 }
@@ -449,32 +411,11 @@ impl ScenarioFile {
             if let Some(n) = cov.children {
                 c.range(&at("children"), n as f64, 1.0, 32.0)?;
             }
-            match cov.views.as_str() {
-                "every_grab" => {}
-                "start_points" => {
-                    if let Some(i) = self
-                        .robots
-                        .iter()
-                        .position(|r| matches!(r.mission, MissionSpec::CoverageParent))
-                    {
-                        return Err(c.error_at(
-                            &at("views"),
-                            format!(
-                                "\"start_points\" (robot {} runs the mission, and its images are rendered)",
-                                self.robots[i].name
-                            ),
-                            "\"every_grab\" in a scenario whose parent runs the mission; \"start_points\" only for grid planning (sweeps, `hetsim regress`)",
-                        ));
-                    }
-                }
-                other => {
-                    return Err(c.error_at(
-                        &at("views"),
-                        format!("\"{other}\""),
-                        "\"every_grab\" or \"start_points\"",
-                    ))
-                }
-            }
+            let parent = self
+                .robots
+                .iter()
+                .find(|r| matches!(r.mission, MissionSpec::CoverageParent));
+            cov.check_views(c, parent.map(|r| r.name.as_str()))?;
         }
         let at = |f: &'static str| ["comms", f];
         c.positive(&at("range_m"), self.comms.range_m)?;
