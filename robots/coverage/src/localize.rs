@@ -208,13 +208,13 @@ impl ParticleFilter {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use hetsim_vision::Gray;
 
-    /// A synthetic room whose "image" at a position is a pattern unique to its column and
-    /// row, so that features identify places.
-    fn view(x: f64, y: f64) -> Features {
+    /// A synthetic room whose 120 x 88 grey "image" at a position is a pattern unique to its
+    /// column and row, so that features identify places (also the child's tests' room).
+    pub(crate) fn room(x: f64, y: f64) -> Gray {
         let (w, h) = (120, 88);
         let data = (0..w * h)
             .map(|i| {
@@ -224,14 +224,19 @@ mod tests {
                     + 60.0 * (v * (0.05 + 0.05 * y)).cos()) as f32
             })
             .collect();
-        Features::of(&Gray {
+        Gray {
             width: w,
             height: h,
             data,
-        })
+        }
     }
 
-    fn grid() -> OccupancyGrid {
+    fn view(x: f64, y: f64) -> Features {
+        Features::of(&room(x, y))
+    }
+
+    /// A 4 x 3 m room of 0.5 m cells (8 x 6) with two occupied cells, (3, 2) and (4, 2).
+    pub(crate) fn grid() -> OccupancyGrid {
         OccupancyGrid {
             origin_x: 0.0,
             origin_y: 0.0,

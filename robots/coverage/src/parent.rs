@@ -57,6 +57,7 @@ use hetsim_msgs::{
 };
 use hetsim_pilot::{GroundPilot, GroundPilotParams};
 
+mod handover;
 mod sense;
 mod teleop;
 
@@ -89,6 +90,8 @@ pub struct ParentParams {
     pub hat_tracker: Option<HatTracker>,
     /// Seed of the localization's random numbers.
     pub seed: u64,
+    /// Seed of the path a child localizes along after mapping.
+    pub tour_seed: u64,
 }
 
 impl ParentParams {
@@ -116,6 +119,7 @@ impl ParentParams {
             mcl: MclParams::default(),
             hat_tracker: None,
             seed: 0,
+            tour_seed: 0,
         }
     }
 }
@@ -191,6 +195,9 @@ pub struct ParentStack {
     /// child is lost only if untracked while the parent looks), nanoseconds.
     looked: Option<(u64, u64)>,
     report: TeamReport,
+    /// After mapping: the database's delivery and a child's localization run.
+    handover: Option<handover::Handover>,
+    handover_tried: bool,
     outbox: Vec<Outgoing>,
     now_ns: u64,
 }
@@ -232,6 +239,7 @@ impl ParentStack {
                 f_factor: 2.0,
                 child_speed_mps: 0.15,
                 parent_start: [0.0; 3],
+                localize_steps: 0,
             },
         };
         let localizer = params
@@ -295,6 +303,8 @@ impl ParentStack {
             children,
             looked: None,
             report: TeamReport::default(),
+            handover: None,
+            handover_tried: false,
             outbox: Vec::new(),
             now_ns: 0,
         }
@@ -489,7 +499,9 @@ impl ParentStack {
                         self.children.iter().position(|c| c.name == d.from),
                         TeamMsg::decode(d),
                     ) {
-                        self.handle_reply(i, m);
+                        if !self.handover_reply(i, &m) {
+                            self.handle_reply(i, m);
+                        }
                     }
                 }
                 _ => {}
@@ -501,13 +513,17 @@ impl ParentStack {
         if self.plan.is_none() && !self.plan_failed {
             self.make_plan(&pose);
         }
-        for i in 0..self.children.len() {
-            self.supervise(i);
+        // After the mapping the children are on their own.
+        if self.report.finished_ns.is_none() {
+            for i in 0..self.children.len() {
+                self.supervise(i);
+            }
         }
         if !self.waiting.is_empty() {
             self.release_waiting();
         }
         self.advance();
+        self.hand_over();
         let Some(pilot) = self.pilot.as_mut() else {
             return Command::Stop;
         };
@@ -541,7 +557,7 @@ impl RobotStack for ParentStack {
             wants_images: self.params.hat_tracker.is_some()
                 && self.plan.is_some()
                 && self.report.finished_ns.is_none(),
-            mission_over: self.report.finished_ns.is_some(),
+            mission_over: self.report.finished_ns.is_some() && self.handover_over(),
         }
     }
 
@@ -568,6 +584,12 @@ impl ParentStack {
             .iter()
             .map(|c| (c.name.clone(), c.path.clone()))
             .collect();
+        r.tour = self.handover.as_ref().map(|h| crate::report::TourReport {
+            child: self.children[h.child].name.clone(),
+            path: h.path.clone(),
+            over_ns: h.over_ns,
+            timed_out: h.timed_out,
+        });
         r
     }
 }

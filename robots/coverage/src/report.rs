@@ -51,4 +51,20 @@ pub struct TeamReport {
     pub steps_total: usize,
     /// Every child's positions as the parent's tracker measured them.
     pub tracked_paths: Vec<(String, TrackedPath)>,
+    /// The localization run after mapping, if the database was sent.
+    pub tour: Option<TourReport>,
+}
+
+/// A child's localization run after mapping (its estimates are its own `pf-<feature>`
+/// trajectories).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct TourReport {
+    /// The child.
+    pub child: String,
+    /// The path the parent gave it, `(col, row)`, from where it stood.
+    pub path: Vec<(usize, usize)>,
+    /// When the parent heard the child report the run done (or gave up), nanoseconds.
+    pub over_ns: Option<u64>,
+    /// The parent gave up: no report within a minute per move.
+    pub timed_out: bool,
 }

@@ -1,8 +1,8 @@
 //! The radio protocol between a coverage parent and its children, and the child's software
 //! (seed 002, Section V.B).
 //!
-//! The children have no localization: a camera, a compass and wheel encoders. The parent
-//! tracks them and sends **orders**; a child
+//! The children have no localization of their own while mapping: a camera, a compass and
+//! wheel encoders. The parent tracks them and sends **orders**; a child
 //! * **drives**: rotates by compass towards a heading, then drives straight at the mission's
 //!   speed (0.15 m/s in the seed), holding the heading by compass, for a distance measured by
 //!   its encoders, and stops (also when its encoders stall: less than 1 cm in two seconds);
@@ -14,11 +14,17 @@
 //! acknowledges each order (again when it receives it again), reports a finished drive with
 //! `Done` and a grab with `Grabbed` (again whenever the order is repeated), and ignores orders
 //! older than the one it is executing. The parent repeats an order until it hears back.
+//!
+//! After the mapping the parent may send a child the database and a path
+//! ([`TeamMsg::Localize`]): the child then drives and localizes on its own (`team/tour.rs`),
+//! and reports the run done with [`TeamMsg::Localized`]; the parent polls for that report
+//! ([`TeamMsg::Poll`]).
 
 use hetsim_msgs::{
-    wrap_angle, Command, Image, InboxGuard, InputError, Mission, Outgoing, RobotStack, SensorMsg,
-    StackStatus,
+    wrap_angle, Artifact, Command, Image, InboxGuard, InputError, Mission, OccupancyGrid, Outgoing,
+    RobotStack, SensorMsg, StackStatus,
 };
+use hetsim_vision::appearance::Features;
 use serde::{Deserialize, Serialize};
 
 /// The radio topic of the team's messages.
@@ -80,6 +86,32 @@ pub enum TeamMsg {
         /// The image.
         image: Image,
     },
+    /// Parent to child, after mapping: the database by radio, and a new path to localize
+    /// along on its own (see `team/tour.rs`).
+    Localize {
+        /// Sequence number, increasing per child (shared with the orders).
+        seq: u32,
+        /// The map the particles live on (the parent's occupancy grid).
+        grid: OccupancyGrid,
+        /// The database: the parent's grab position estimate and the image's features.
+        places: Vec<([f64; 2], Features)>,
+        /// The path: the positions (metres) of the vertices to image at, the child's own
+        /// (as the parent tracked it) first.
+        path: Vec<[f64; 2]>,
+        /// The direction of mapping, radians: every image faces it.
+        heading_rad: f64,
+    },
+    /// Parent to child: is the run of [`TeamMsg::Localize`] `seq` over? (Answered, like a
+    /// repeated message, with the acknowledgement and the report if there is one.)
+    Poll {
+        /// The [`TeamMsg::Localize`]'s sequence number.
+        seq: u32,
+    },
+    /// Child to parent: the localization run of message `seq` is over.
+    Localized {
+        /// The [`TeamMsg::Localize`]'s sequence number.
+        seq: u32,
+    },
 }
 
 impl TeamMsg {
@@ -113,6 +145,8 @@ pub struct ChildParams {
     pub aim_tolerance_rad: f64,
     /// Time to stand still after rotating before an image is taken, nanoseconds.
     pub settle_ns: u64,
+    /// Seed of the localization's particle filters.
+    pub seed: u64,
 }
 
 #[derive(Clone, Debug, PartialEq)]
@@ -152,6 +186,8 @@ pub struct ChildStack {
     fresh_heading: bool,
     /// The reply to the current order once it is finished (repeated on request).
     reply: Option<TeamMsg>,
+    /// The localization run after mapping, once the database has come.
+    tour: Option<tour::Tour>,
     outbox: Vec<Outgoing>,
     status: StackStatus,
 }
@@ -173,6 +209,7 @@ impl ChildStack {
             heading: None,
             fresh_heading: false,
             reply: None,
+            tour: None,
             outbox: Vec::new(),
             status: StackStatus::default(),
         }
@@ -184,22 +221,35 @@ impl ChildStack {
         }
     }
 
-    fn obey(&mut self, seq: u32, order: Order) {
+    /// Whether message `seq` is new: then it is acknowledged and becomes the current one. An
+    /// old one is ignored; the current one again is acknowledged again, with its reply.
+    fn accept(&mut self, seq: u32) -> bool {
         match self.seq {
-            Some(current) if seq < current => return,
+            Some(current) if seq < current => return false,
             Some(current) if seq == current => {
                 // The parent did not hear us: say it again.
                 self.send(TeamMsg::Ack { seq });
                 if let Some(reply) = self.reply.clone() {
                     self.send(reply);
                 }
-                return;
+                return false;
             }
             _ => {}
         }
         self.seq = Some(seq);
         self.reply = None;
         self.send(TeamMsg::Ack { seq });
+        true
+    }
+
+    fn obey(&mut self, seq: u32, order: Order) {
+        if !self.accept(seq) {
+            return;
+        }
+        // An order from the parent ends a localization run (its estimates stay).
+        if let Some(t) = self.tour.as_mut() {
+            t.running = false;
+        }
         self.phase = match order {
             Order::Stop => Phase::Idle,
             Order::Drive {
@@ -230,10 +280,20 @@ impl ChildStack {
     }
 
     fn finish(&mut self, reply: TeamMsg) {
+        if let Some(tour) = self.tour.as_mut().filter(|t| t.running) {
+            // On its own: the drive or image goes to the particle filters, not the radio.
+            self.phase = tour.next(&reply);
+            if self.phase == Phase::Idle {
+                let done = TeamMsg::Localized { seq: tour.seq };
+                self.reply = Some(done.clone());
+                self.send(done);
+            }
+            return;
+        }
+        self.status.goals_reached += 1;
         self.reply = Some(reply.clone());
         self.send(reply);
         self.phase = Phase::Idle;
-        self.status.goals_reached += 1;
     }
 }
 
@@ -261,11 +321,25 @@ impl ChildStack {
                     }
                 }
                 SensorMsg::WheelOdometry(o) => driven += (o.left_m + o.right_m) / 2.0,
-                SensorMsg::Comms(d) if d.from == self.parent => {
-                    if let Some(TeamMsg::Order { seq, order }) = TeamMsg::decode(d) {
-                        self.obey(seq, order);
+                SensorMsg::Comms(d) if d.from == self.parent => match TeamMsg::decode(d) {
+                    Some(TeamMsg::Order { seq, order }) => self.obey(seq, order),
+                    Some(TeamMsg::Localize {
+                        seq,
+                        grid,
+                        places,
+                        path,
+                        heading_rad,
+                    }) if self.accept(seq) => {
+                        let tour =
+                            tour::Tour::new(seq, grid, places, path, heading_rad, self.params.seed);
+                        self.phase = tour.first();
+                        self.tour = Some(tour);
                     }
-                }
+                    Some(TeamMsg::Poll { seq }) if self.seq == Some(seq) => {
+                        self.accept(seq);
+                    }
+                    _ => {}
+                },
                 SensorMsg::Image(i) => image = Some(i),
                 _ => {}
             }
@@ -394,7 +468,14 @@ impl RobotStack for ChildStack {
     fn outbox(&mut self) -> Vec<Outgoing> {
         std::mem::take(&mut self.outbox)
     }
+
+    fn artifacts(&self) -> Vec<Artifact> {
+        self.tour
+            .as_ref()
+            .map_or_else(Vec::new, tour::Tour::artifacts)
+    }
 }
 
 #[cfg(test)]
 mod tests;
+mod tour;

@@ -116,6 +116,10 @@ pub struct CoverageMission {
     /// the prior of its laser localization, as one sets a ROS `amcl` initial pose.
     #[serde(default)]
     pub parent_start: [f64; 3],
+    /// After mapping, the first child is sent the database by radio and drives this many
+    /// grid moves on its own, localizing from its images (0: no localization run).
+    #[serde(default)]
+    pub localize_steps: usize,
 }
 
 /// A compass heading.

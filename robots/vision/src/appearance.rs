@@ -17,6 +17,7 @@
 //! (8 x 8 pixels for 120 x 88), compared by the mean absolute difference of the grey levels.
 
 use crate::Gray;
+use serde::{Deserialize, Serialize};
 
 /// Side of the sub-window grid.
 const CELLS: usize = 4;
@@ -24,7 +25,7 @@ const CELLS: usize = 4;
 const BINS: usize = 8;
 
 /// A WGOH descriptor (128 values, unit length).
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Wgoh(pub Vec<f32>);
 
 impl Wgoh {
@@ -83,7 +84,7 @@ fn normalize(v: &mut [f32]) {
 }
 
 /// A reduced grey image for pixelwise comparison.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Thumbnail {
     /// Width, pixels.
     pub width: usize,
@@ -130,7 +131,7 @@ impl Thumbnail {
 }
 
 /// The two features of a database image.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Features {
     /// WGOH at full resolution.
     pub wgoh: Wgoh,

@@ -27,6 +27,9 @@ pub struct CoverageSpec {
     /// (a relaxation for comparison: only a stage's starting points; refused in a mission the
     /// simulator runs, whose images are rendered).
     pub views: String,
+    /// After mapping, the first child localizes from the database on a new path of this many
+    /// grid moves, in lockstep (0: none). 20 by default.
+    pub localize_steps: usize,
 }
 
 impl Default for CoverageSpec {
@@ -39,6 +42,7 @@ impl Default for CoverageSpec {
             children: None,
             f_factor: 2.0,
             views: "every_grab".to_string(),
+            localize_steps: 20,
         }
     }
 }

@@ -411,6 +411,12 @@ impl ScenarioFile {
             if let Some(n) = cov.children {
                 c.range(&at("children"), n as f64, 1.0, 32.0)?;
             }
+            c.range(
+                &at("localize_steps"),
+                cov.localize_steps as f64,
+                0.0,
+                1000.0,
+            )?;
             let parent = self
                 .robots
                 .iter()

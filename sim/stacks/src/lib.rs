@@ -241,6 +241,10 @@ fn coverage_stack(
             params.seed = rand::Rng::next_u64(
                 &mut Streams::new(scenario.seed).stream(&format!("{}/mcl", robot.spec.name)),
             );
+            // The path a child localizes along after mapping: the stream `<robot>/tour`.
+            params.tour_seed = rand::Rng::next_u64(
+                &mut Streams::new(scenario.seed).stream(&format!("{}/tour", robot.spec.name)),
+            );
             // The laser the parent localizes with: its first, as mounted (planar: x, y, yaw).
             params.laser_mount = robot.model.sensors.iter().find_map(|s| match s {
                 Sensor::Laser { mount, .. } => Some([
@@ -267,6 +271,10 @@ fn coverage_stack(
                     max_turn_radps: model.body.max_yaw_rate_deg_s.to_radians().min(1.0),
                     aim_tolerance_rad: model.pilot.aim_tolerance_deg.unwrap_or(2.0).to_radians(),
                     settle_ns: 200_000_000,
+                    // Its particle filters' random numbers: the stream `<robot>/pf`.
+                    seed: rand::Rng::next_u64(
+                        &mut Streams::new(scenario.seed).stream(&format!("{}/pf", robot.spec.name)),
+                    ),
                 },
                 mission,
             )))
@@ -377,6 +385,12 @@ fn mission(scenario: &Scenario, spec: &MissionSpec) -> Mission {
                     f_factor: params.f_factor,
                     child_speed_mps,
                     parent_start,
+                    localize_steps: scenario
+                        .file
+                        .coverage
+                        .clone()
+                        .unwrap_or_default()
+                        .localize_steps,
                 })
             }
             None => Mission::Idle,

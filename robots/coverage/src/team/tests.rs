@@ -2,6 +2,7 @@
 
 use super::*;
 use hetsim_msgs::{CompassReading, Delivered, WheelOdometry};
+use hetsim_vision::appearance::{Feature, Features};
 
 fn child() -> ChildStack {
     ChildStack::new(
@@ -11,6 +12,7 @@ fn child() -> ChildStack {
             max_turn_radps: 1.0,
             aim_tolerance_rad: 0.05,
             settle_ns: 200_000_000,
+            seed: 5,
         },
         &Mission::Teleoperated {
             parent: "parent".into(),
@@ -214,4 +216,153 @@ fn a_grab_waits_for_an_image_taken_after_settling() {
         "{r:?}"
     );
     assert!(!c.status().wants_images);
+}
+
+/// The localization tests' synthetic room at a position, as an RGB camera image.
+fn room_view(stamp_ns: u64, x: f64, y: f64) -> Image {
+    let gray = crate::localize::tests::room(x, y);
+    Image {
+        stamp_ns,
+        sensor: "camera".into(),
+        width: gray.width as u32,
+        height: gray.height as u32,
+        encoding: hetsim_msgs::PixelEncoding::Rgb8,
+        data: gray.data.iter().flat_map(|g| [*g as u8; 3]).collect(),
+    }
+}
+
+/// After mapping, the database comes by radio with a path; the child drives it on its own
+/// (kinematics below, true compass, encoders of its own wheels, images of where it really
+/// is) and localizes: the run ends with `Localized`, and each feature's filter ends within
+/// one grid spacing of the truth, from particles spread over the whole room.
+#[test]
+fn a_child_sent_the_database_drives_its_path_and_localizes() {
+    let grid = crate::localize::tests::grid();
+    let places: Vec<([f64; 2], Features)> = (0..48)
+        .filter(|i| !grid.occupied[*i])
+        .map(|i| {
+            let xy = grid.centre_of(i % 8, i / 8);
+            let img = room_view(0, xy[0], xy[1]);
+            (
+                xy,
+                Features::of(&hetsim_vision::Gray::from_image(&img).unwrap()),
+            )
+        })
+        .collect();
+    // From (0.25, 0.25): five cells east, then two north past the obstacle's east side
+    // (cells (3, 2) and (4, 2) are occupied).
+    let path: Vec<[f64; 2]> = [
+        (0, 0),
+        (1, 0),
+        (2, 0),
+        (3, 0),
+        (4, 0),
+        (5, 0),
+        (5, 1),
+        (5, 2),
+    ]
+    .iter()
+    .map(|&(c, r)| [0.25 + 0.5 * c as f64, 0.25 + 0.5 * r as f64])
+    .collect();
+    let mut c = child();
+    let msg = TeamMsg::Localize {
+        seq: 9,
+        grid,
+        places,
+        path: path.clone(),
+        heading_rad: 0.0,
+    }
+    .to("child");
+    let delivered = SensorMsg::Comms(Delivered {
+        from: "parent".into(),
+        topic: msg.topic,
+        sent_ns: 0,
+        stamp_ns: 0,
+        payload: msg.payload,
+    });
+    // The robot: unicycle kinematics from the wheel speeds, 50 ms ticks.
+    let (mut x, mut y, mut yaw) = (0.25, 0.25, 0.0f64);
+    let mut wheels = (0.0, 0.0);
+    let dt = 0.05;
+    let mut heard = Vec::new();
+    for tick in 0..20_000u64 {
+        let now = tick * 50_000_000;
+        let (l, r) = wheels;
+        let (left_m, right_m) = (l * dt, r * dt);
+        let forward = (left_m + right_m) / 2.0;
+        yaw += (right_m - left_m) / c.params.track_m;
+        x += forward * yaw.cos();
+        y += forward * yaw.sin();
+        let mut inbox = vec![
+            SensorMsg::Compass(CompassReading {
+                stamp_ns: now,
+                sensor: "compass".into(),
+                heading_rad: hetsim_msgs::wrap_angle(yaw),
+            }),
+            SensorMsg::WheelOdometry(WheelOdometry {
+                stamp_ns: now,
+                sensor: "e".into(),
+                left_m,
+                right_m,
+            }),
+        ];
+        if tick == 0 {
+            inbox.push(delivered.clone());
+        }
+        if c.status().wants_images {
+            inbox.push(SensorMsg::Image(room_view(now, x, y)));
+        }
+        wheels = match step(&mut c, now, &inbox) {
+            Command::Wheels {
+                left_mps,
+                right_mps,
+            } => (left_mps, right_mps),
+            _ => (0.0, 0.0),
+        };
+        heard.extend(replies(&mut c));
+        if heard.contains(&TeamMsg::Localized { seq: 9 }) {
+            break;
+        }
+    }
+    assert!(heard.contains(&TeamMsg::Ack { seq: 9 }), "{heard:?}");
+    assert!(heard.contains(&TeamMsg::Localized { seq: 9 }), "never done");
+    // It drove the path itself: within a few centimetres of its end (2.75, 1.25).
+    assert!(
+        (x - 2.75).hypot(y - 1.25) < 0.1,
+        "ended at ({x:.2}, {y:.2})"
+    );
+    let artifacts = c.artifacts();
+    assert_eq!(artifacts.len(), Feature::ALL.len());
+    for a in &artifacts {
+        let hetsim_msgs::ArtifactData::Trajectory(track) = &a.data else {
+            panic!("{} is not a trajectory", a.name)
+        };
+        // One estimate per image: one per vertex of the path.
+        assert_eq!(track.len(), path.len(), "{}", a.name);
+        let e = track.last().unwrap().1.translation.vector;
+        let error = (e.x - x).hypot(e.y - y);
+        assert!(error < 0.5, "{}: final error {error:.2} m", a.name);
+    }
+    // A poll, or the database again (its acknowledgement was lost), is answered with the
+    // acknowledgement and the report, and starts nothing.
+    step(&mut c, u64::MAX / 4, std::slice::from_ref(&delivered));
+    let poll = TeamMsg::Poll { seq: 9 }.to("child");
+    step(
+        &mut c,
+        u64::MAX / 4 + 1,
+        &[SensorMsg::Comms(Delivered {
+            from: "parent".into(),
+            topic: poll.topic,
+            sent_ns: 0,
+            stamp_ns: 0,
+            payload: poll.payload,
+        })],
+    );
+    let again = vec![TeamMsg::Ack { seq: 9 }, TeamMsg::Localized { seq: 9 }];
+    assert_eq!(replies(&mut c), [again.clone(), again].concat());
+    assert_eq!(c.phase, Phase::Idle);
+    // An order after the run is obeyed again and answered by radio; the estimates stay.
+    step(&mut c, u64::MAX / 2, &[order(10, Order::Stop)]);
+    assert_eq!(replies(&mut c), vec![TeamMsg::Ack { seq: 10 }]);
+    assert_eq!(c.artifacts().len(), Feature::ALL.len());
 }
