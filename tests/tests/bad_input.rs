@@ -473,6 +473,20 @@ fn unknown_view_rule() {
 }
 
 #[test]
+fn localization_run_too_long() {
+    let text = format!("{SCENARIO}\n[coverage]\nlocalize_steps = 5000\n");
+    let (_, e, _d) = load(&text, None);
+    assert_names(
+        &e,
+        "broken.toml",
+        line_of(&text, "localize_steps"),
+        "coverage.localize_steps",
+        "5000",
+        "a number in [0, 1000]",
+    );
+}
+
+#[test]
 fn paper_view_rule_in_a_mission_the_simulator_runs() {
     // "start_points" checks no grab: a mission whose images are rendered must not use it.
     let text = parent_scenario() + "\n[coverage]\nviews = \"start_points\"\n";

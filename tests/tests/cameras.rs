@@ -45,7 +45,7 @@ fn rendered_runs_deliver_images_at_their_rates_and_repeat_bit_for_bit() {
 fn cameras_render_only_for_robots_that_want_images() {
     // In the lab's coverage mission the children want an image only while waiting for a
     // grab (nothing in the first 2 s), and the parent its panoramas from when it has a plan
-    // (its first laser localization) until the mission is over: 5 Hz.
+    // (its first laser localization) until the mapping is done: 5 Hz.
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("lab");
     printed_digest(&hetsim(

@@ -16,7 +16,7 @@ fn digest_of(scenario: &str, seed: u64, secs: f64) -> String {
     )
     .unwrap();
     let result = run_scenario(&s, RunOptions::default());
-    let metrics = Metrics::compute(&s, &result, None).unwrap();
+    let metrics = Metrics::compute(&s, &result).unwrap();
     let dir = tempfile::tempdir().unwrap();
     write_run(
         &s,

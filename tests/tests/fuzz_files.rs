@@ -178,7 +178,7 @@ fn load_and_run(path: &Path, mutated: &str) -> Result<bool, String> {
             let output = hetsim_engine::run(&s, stacks, |_, _| {}, Default::default())
                 .map_err(|e| format!("an accepted scenario failed to run: {e}"))?;
             // And evaluated, as `hetsim run` does (indoor scenarios plan their coverage).
-            hetsim_eval::Metrics::compute(&s, &output, None)
+            hetsim_eval::Metrics::compute(&s, &output)
                 .map_err(|e| format!("an accepted scenario's run failed to evaluate: {e}"))?;
             Ok(true)
         }

@@ -126,5 +126,20 @@ fn the_mission_completes_with_ten_percent_comms_loss() {
         - t["parent_vertices"].as_u64().unwrap()
         - t["unplanned"].as_array().unwrap().len() as u64;
     assert_eq!(t["imaged"].as_u64().unwrap(), target, "{t}");
+    // Nobody touched anything, the child's localization run after mapping included.
     assert_eq!(t["collisions"], 0, "{t}");
+    // The database reached the first child by the lossy radio, it drove its 20 moves and
+    // its report came back: the mission ended with it, long before the scenario's hour.
+    let localized = t["localized_min"]
+        .as_f64()
+        .expect("the localization run ended");
+    assert!(
+        m["sim_secs"].as_f64().unwrap() < localized * 60.0 + 3.0,
+        "{m}"
+    );
+    let runs = t["localization"].as_array().unwrap();
+    assert_eq!(runs.len(), 2, "{t}");
+    for run in runs {
+        assert_eq!(run["steps"], 21, "{run}");
+    }
 }

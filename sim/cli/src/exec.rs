@@ -202,7 +202,7 @@ pub fn run_scenario(loaded: &Scenario, job: &Job<'_>) -> Result<hetsim_eval::Run
             let path = r.finish()?;
             eprintln!("recorded: {}", path.display());
         }
-        let metrics = hetsim_eval::Metrics::compute(loaded, &result, job.render.as_ref())?;
+        let metrics = hetsim_eval::Metrics::compute(loaded, &result)?;
         let wall = start.elapsed().as_secs_f64();
         let timing = serde_json::json!({
             "wall_secs": wall,

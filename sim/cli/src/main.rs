@@ -94,20 +94,15 @@ enum Cmd {
     },
     /// Localization from coverage-mission image databases (seed 002, Section V.B): runs the
     /// scenario's mission for seeds 1..=N (reusing runs already in the output folder),
-    /// cross-validates their databases (WGOH and pixelwise), and localizes a child driving
-    /// new random paths with the particle filter. Writes localization.json and .md.
+    /// cross-validates their databases (WGOH and pixelwise), and gathers the particle filter
+    /// runs of the child each mission sent on a new path after mapping (`[coverage]
+    /// localize_steps`). Writes localization.json, .md and .png.
     Localize {
         /// Scenario with a coverage mission (e.g. scenarios/lab.toml).
         scenario: PathBuf,
         /// Mapping runs (seeds 1..=N).
         #[arg(long, default_value_t = 10)]
         seeds: u64,
-        /// Particle filter paths.
-        #[arg(long, default_value_t = 5)]
-        paths: usize,
-        /// Grid moves per path.
-        #[arg(long, default_value_t = 20)]
-        steps: usize,
         /// Output folder (default: results/runs/localize-<name>).
         #[arg(long)]
         out: Option<PathBuf>,
@@ -344,16 +339,12 @@ fn real_main() -> Result<()> {
         Cmd::Localize {
             scenario,
             seeds,
-            paths,
-            steps,
             out,
             backend,
             adapter,
         } => study::localize(
             &scenario,
             seeds,
-            paths,
-            steps,
             out,
             hetsim_render::RenderOptions {
                 backend,

@@ -64,7 +64,7 @@ fn load(path: &Path, text: &str, set: &[String], options: LoadOptions) -> Result
 /// Replays and writes the results folder; prints `results:` and `digest:`.
 pub fn replay(args: &ReplayArgs<'_>) -> Result<hetsim_eval::RunFiles> {
     let start = crate::bench::wall_clock();
-    let (mut open_loop, mut rendered) = (false, false);
+    let mut open_loop = false;
     let (scenario, mut recording): (Scenario, Box<dyn Recording>) = if args.source.is_dir() {
         let Some(path) = &args.scenario else {
             bail!(
@@ -161,7 +161,7 @@ pub fn replay(args: &ReplayArgs<'_>) -> Result<hetsim_eval::RunFiles> {
                 scenario.clock.dt_ns()
             );
         }
-        (open_loop, rendered) = (run.open_loop, run.rendered);
+        open_loop = run.open_loop;
         (scenario, Box::new(mcap))
     };
     let names: Vec<&str> = scenario
@@ -201,10 +201,7 @@ pub fn replay(args: &ReplayArgs<'_>) -> Result<hetsim_eval::RunFiles> {
     );
     bar.finish_and_clear();
     let output = output?;
-    // The evaluation renders what it needs (a coverage mission's localization paths) where
-    // the live run's did: evaluation, not robot software.
-    let render = rendered.then(hetsim_render::RenderOptions::default);
-    let metrics = hetsim_eval::Metrics::compute(&scenario, &output, render.as_ref())?;
+    let metrics = hetsim_eval::Metrics::compute(&scenario, &output)?;
     let wall = start.elapsed().as_secs_f64();
     let timing = serde_json::json!({
         "wall_secs": wall,

@@ -253,16 +253,15 @@ fn whole_run(
     sweep::metrics_of_run(sweep, run, dir)
 }
 
-/// `hetsim localize`: mapping runs, cross-validation, particle filter paths.
+/// `hetsim localize`: mapping runs, cross-validation, and each run's child localizing on its
+/// own path after mapping (in lockstep).
 pub fn localize(
     scenario: &Path,
     seeds: u64,
-    paths: usize,
-    steps: usize,
     out: Option<PathBuf>,
     render: RenderOptions,
 ) -> Result<()> {
-    use hetsim_eval::localize::{cross_validate, load_database, particle_filter_path};
+    use hetsim_eval::localize::{cross_validate, load_database, PathRun};
     anyhow::ensure!(
         seeds >= 2,
         "--seeds {seeds}: cross-validation needs at least 2 runs"
@@ -316,18 +315,24 @@ pub fn localize(
     }
     eprintln!("cross-validating {} databases", databases.len());
     let cross = cross_validate(&databases);
-    let mut pf: Vec<hetsim_eval::localize::PathRun> = Vec::new();
-    for p in 0..paths {
-        eprintln!("particle filter path {}/{paths}", p + 1);
-        let db = &databases[p % databases.len()];
-        pf.extend(particle_filter_path(
-            &base,
-            db,
-            steps,
-            1000 + p as u64,
-            &render,
-        )?);
+    // The paths the runs' children drove on their own after mapping.
+    let mut pf: Vec<PathRun> = Vec::new();
+    for (seed, m) in (1..=seeds).zip(&missions) {
+        let dir = out.join(format!("runs/seed-{seed}"));
+        // Runs from before the localization ran in lockstep have no such child (their
+        // `localization` was driven after the run, from the truth): not to be mixed in.
+        anyhow::ensure!(
+            m.get("localization_child").is_some(),
+            "{}: a run from an older hetsim (its localization was not run in lockstep); delete the folder to run it again",
+            dir.display()
+        );
+        let runs: Vec<PathRun> =
+            serde_json::from_value(m["localization"].clone()).with_context(|| {
+                format!("{}: team.localization", dir.join("metrics.json").display())
+            })?;
+        pf.extend(runs);
     }
+    let paths = pf.len() / hetsim_vision::appearance::Feature::ALL.len();
     let summary = hetsim_eval::localize::summarize(&missions, &cross, &pf);
     let json = serde_json::to_vec_pretty(&summary)?;
     let md = hetsim_eval::localize::markdown(&summary);

@@ -1,18 +1,11 @@
 //! Localization from coverage-mission image databases (seed 002, Section V.B): the
-//! cross-validation of the paper over several mapping runs, and a particle filter that
-//! localizes a child driving a new path.
+//! cross-validation of the paper over several mapping runs, and the errors of the child that
+//! localized with the particle filter on a new path in lockstep after mapping.
 
 use crate::stats::MeanStd;
 use crate::EvalError;
-use hetsim_core::{SimRng, Streams};
-use hetsim_coverage::localize::{ParticleFilter, PfParams, Place};
-use hetsim_msgs::pose_from_xyz_rpy;
-use hetsim_render::{CameraView, RenderOptions, Renderer};
-use hetsim_scene::Scenario;
 use hetsim_vision::appearance::{best_match, Feature, Features};
 use hetsim_vision::Gray;
-use rand::RngExt;
-use rand_distr::{Distribution, StandardNormal};
 use serde::Serialize;
 use std::path::Path;
 
@@ -162,25 +155,8 @@ pub fn cross_validate(runs: &[Vec<DbImage>]) -> Vec<FeatureErrors> {
         .collect()
 }
 
-/// The camera of the scenario's first coverage child: body-from-mount, intrinsics, noise.
-fn child_camera(
-    scenario: &Scenario,
-) -> Result<(hetsim_msgs::Pose, hetsim_render::Intrinsics, f64), EvalError> {
-    scenario
-        .robots
-        .iter()
-        .filter(|r| matches!(r.spec.mission, hetsim_scene::MissionSpec::CoverageChild))
-        .find_map(crate::scene::camera_of)
-        .ok_or_else(|| {
-            EvalError::Scenario(format!(
-                "{}: no coverage_child robot with a camera",
-                scenario.path.display()
-            ))
-        })
-}
-
 /// The particle filter's run along a path.
-#[derive(Clone, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, serde::Deserialize)]
 pub struct PathRun {
     /// The feature.
     pub feature: String,
@@ -196,124 +172,52 @@ pub struct PathRun {
     pub final_error_m: f64,
 }
 
-/// Drives a child along a new seeded random path of `steps` grid moves through the scenario's
-/// room, rendering an image facing the direction of mapping at every vertex (the child's
-/// camera, its pixel noise, a compass error of `compass_sigma_deg` and a position error of
-/// 5 cm), and localizes it with the particle filter against `database`, for each feature.
-pub fn particle_filter_path(
-    scenario: &Scenario,
-    database: &[DbImage],
-    steps: usize,
-    seed: u64,
-    render: &RenderOptions,
-) -> Result<Vec<PathRun>, EvalError> {
-    let grid = scenario
-        .world
-        .grid
-        .as_ref()
-        .ok_or_else(|| EvalError::Scenario("localization needs an indoor_grid world".into()))?
-        .grid
-        .clone();
-    let (mount, k, noise) = child_camera(scenario)?;
-    let mapping = crate::scene::direction_rad(scenario);
-    // The path's own stream of the run's seed: the same seed, the same path and images.
-    let mut rng = Streams::new(seed).stream("localize/path");
-    // The path: a random walk over free vertices of the robots' component, never straight
-    // back.
-    let reachable: Vec<(usize, usize)> = database.iter().map(|d| d.vertex).collect();
-    if reachable.is_empty() {
-        return Err(EvalError::Scenario("the database is empty".into()));
-    }
-    let mut here = reachable[rng.random_range(0..reachable.len())];
-    let mut path = vec![here];
-    let mut previous = None;
-    for _ in 0..steps {
-        let free: Vec<(usize, usize)> = [(1i64, 0i64), (0, 1), (-1, 0), (0, -1)]
-            .iter()
-            .map(|(dc, dr)| (here.0 as i64 + dc, here.1 as i64 + dr))
-            .filter(|&(c, r)| grid.is_free(c, r))
-            .map(|(c, r)| (c as usize, r as usize))
-            .collect();
-        // Back only out of a dead end.
-        let onward: Vec<(usize, usize)> = free
-            .iter()
-            .copied()
-            .filter(|v| Some(*v) != previous)
-            .collect();
-        let options = if onward.is_empty() { free } else { onward };
-        if options.is_empty() {
-            break;
-        }
-        previous = Some(here);
-        here = options[rng.random_range(0..options.len())];
-        path.push(here);
-    }
-    let compass_sigma = 3.5f64.to_radians();
-    let gauss = |rng: &mut SimRng| -> f64 { StandardNormal.sample(rng) };
-    // True grab poses and the images.
-    let mut renderer = Renderer::new(&scenario.world, render)?;
-    let mut shots = Vec::new();
-    let mut true_xy = Vec::new();
-    for v in &path {
-        let c = grid.centre_of(v.0, v.1);
-        let xy = [c[0] + 0.05 * gauss(&mut rng), c[1] + 0.05 * gauss(&mut rng)];
-        let yaw = mapping + compass_sigma * gauss(&mut rng);
-        let body = pose_from_xyz_rpy([xy[0], xy[1], 0.0], [0.0, 0.0, yaw]);
-        let view = CameraView::from_mount(k, &(body * mount), [0.01, 100.0]);
-        let frame = renderer.render(&[view]).remove(0);
-        let rgb: Vec<u8> = frame
-            .rgb()
-            .iter()
-            .map(|p| {
-                (*p as f64 + noise * gauss(&mut rng))
-                    .round()
-                    .clamp(0.0, 255.0) as u8
-            })
-            .collect();
-        shots.push(Features::of(
-            &Gray::from_rgb(k.width as usize, k.height as usize, &rgb)
-                .expect("a rendered frame is w x h x 3"),
-        ));
-        true_xy.push(xy);
-    }
-    // The drives between shots as the child measures them: encoders 2 %, compass.
-    let drives: Vec<(f64, f64)> = true_xy
-        .windows(2)
-        .map(|w| {
-            let (dx, dy) = (w[1][0] - w[0][0], w[1][1] - w[0][1]);
-            let d = dx.hypot(dy) * (1.0 + 0.02 * gauss(&mut rng));
-            (d, dy.atan2(dx) + compass_sigma * gauss(&mut rng))
-        })
-        .collect();
-    let places: Vec<Place> = database
+/// The child's localization run in lockstep: its `pf-<feature>` trajectories (the particle
+/// filters' estimates after every image of the path the parent gave it after mapping; see
+/// `hetsim_coverage::team`), against its true positions at the images' stamps. Empty when no
+/// run was made, it made no image, or the run has no truth of the child. A run the parent
+/// gave up on, or the scenario's end cut short, has fewer steps than its path (see
+/// `TeamMetrics::localization_timed_out`). `distance_m` is measured between the images' true
+/// positions: straight lines, not every centimetre the wheels drove.
+pub fn in_lockstep(
+    report: &hetsim_coverage::TeamReport,
+    output: &hetsim_engine::RunOutput,
+) -> Vec<PathRun> {
+    let Some(tour) = &report.tour else {
+        return Vec::new();
+    };
+    let (Some(truth), Some((_, artifacts))) = (
+        output.truth_of(&tour.child).filter(|t| !t.is_empty()),
+        output.artifacts.iter().find(|(n, _)| *n == tour.child),
+    ) else {
+        return Vec::new();
+    };
+    Feature::ALL
         .iter()
-        .map(|d| Place {
-            xy: d.estimated_xy,
-            features: d.features.clone(),
-        })
-        .collect();
-    Ok(Feature::ALL
-        .iter()
-        .map(|&feature| {
-            let mut pf = ParticleFilter::new(
-                PfParams {
-                    feature,
-                    ..PfParams::default()
-                },
-                grid.clone(),
-                seed,
-            );
-            let mut errors = Vec::new();
-            for (i, shot) in shots.iter().enumerate() {
-                if i > 0 {
-                    let (d, h) = drives[i - 1];
-                    pf.predict(d, h);
-                }
-                pf.update(shot, &places);
-                let e = pf.estimate();
-                errors.push((e[0] - true_xy[i][0]).hypot(e[1] - true_xy[i][1]));
+        .filter_map(|f| {
+            let name = format!("pf-{}", f.name());
+            let poses = artifacts.iter().find_map(|a| match &a.data {
+                hetsim_msgs::ArtifactData::Trajectory(p) if a.name == name => Some(p),
+                _ => None,
+            })?;
+            if poses.is_empty() {
+                return None;
             }
-            let converged_at = (0..errors.len()).find(|&i| errors[i..].iter().all(|e| *e < 0.5));
+            let true_xy: Vec<[f64; 2]> = poses
+                .iter()
+                .map(|(t, _)| {
+                    let p = crate::scene::truth_at(truth, *t).translation.vector;
+                    [p.x, p.y]
+                })
+                .collect();
+            let errors: Vec<f64> = poses
+                .iter()
+                .zip(&true_xy)
+                .map(|((_, e), t)| {
+                    let e = e.translation.vector;
+                    (e.x - t[0]).hypot(e.y - t[1])
+                })
+                .collect();
             let distance_m = true_xy
                 .iter()
                 .scan((0.0, true_xy[0]), |(d, last), p| {
@@ -321,18 +225,17 @@ pub fn particle_filter_path(
                     *last = *p;
                     Some(*d)
                 })
-                .take(errors.len())
                 .collect();
-            PathRun {
-                distance_m,
-                feature: feature.name().into(),
+            Some(PathRun {
+                feature: f.name().into(),
                 steps: errors.len(),
-                final_error_m: *errors.last().unwrap_or(&f64::NAN),
+                distance_m,
+                converged_at: (0..errors.len()).find(|&i| errors[i..].iter().all(|e| *e < 0.5)),
+                final_error_m: *errors.last()?,
                 errors_m: errors,
-                converged_at,
-            }
+            })
         })
-        .collect())
+        .collect()
 }
 
 /// Mission figures over several runs, localization by cross-validation and along paths.

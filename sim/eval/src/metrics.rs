@@ -7,7 +7,6 @@ use crate::trajectory::{estimates, Accuracy};
 use crate::EvalError;
 use hetsim_engine::comms::CommsStats;
 use hetsim_engine::RunOutput;
-use hetsim_render::RenderOptions;
 use hetsim_scene::Scenario;
 use serde::Serialize;
 use std::collections::BTreeMap;
@@ -76,13 +75,8 @@ pub struct Metrics {
 }
 
 impl Metrics {
-    /// Evaluates a run. With `render`, a finished coverage mission's database is also tried
-    /// by the particle filter on a new path (rendered on that adapter).
-    pub fn compute(
-        scenario: &Scenario,
-        output: &RunOutput,
-        render: Option<&RenderOptions>,
-    ) -> Result<Self, EvalError> {
+    /// Evaluates a run.
+    pub fn compute(scenario: &Scenario, output: &RunOutput) -> Result<Self, EvalError> {
         let robots: Vec<RobotMetrics> = output
             .robots
             .iter()
@@ -105,19 +99,7 @@ impl Metrics {
             }
             _ => None,
         };
-        let mut team = None;
-        if let Some(outcome) = TeamOutcome::of(output) {
-            let mut m = TeamMetrics::compute(scenario, &outcome, output);
-            // The children then localize from the images: a particle filter on a new path.
-            if let Some(r) = render {
-                let db = crate::localize::database_of(&outcome.report, &output.truth);
-                if m.finished && !db.is_empty() {
-                    m.localization =
-                        crate::localize::particle_filter_path(scenario, &db, 20, scenario.seed, r)?;
-                }
-            }
-            team = Some(m);
-        }
+        let team = TeamOutcome::of(output).map(|o| TeamMetrics::compute(scenario, &o, output));
         let estimates = estimates(output);
         let mut accuracies = BTreeMap::new();
         for e in &estimates {

@@ -79,10 +79,17 @@ pub struct TeamMetrics {
     /// Database images with another robot in the child camera's view within r_los, where
     /// the plan keeps robots out of the images (should be zero).
     pub images_with_robot_in_view: usize,
-    /// The particle filter on a new path through the room against this run's database
-    /// (20 moves, images rendered with the child's camera; see `hetsim localize`), per
-    /// feature. Empty without rendering.
+    /// The child sent on a new path after mapping (`[coverage] localize_steps` moves), its
+    /// particle filters against this run's database, per feature, against its truth. Empty
+    /// when no such run was made (or the child took no image).
     pub localization: Vec<crate::localize::PathRun>,
+    /// That child, by name.
+    pub localization_child: Option<String>,
+    /// When the parent heard that child report its run done, minutes (absent while the run
+    /// went on, or when the parent gave up on it).
+    pub localized_min: Option<f64>,
+    /// The parent gave up on the run: no report within a minute per move.
+    pub localization_timed_out: bool,
     /// Database images with another robot in view farther than r_los (the seed's planner
     /// does not consider robots beyond r_los; a 1.5 m parent is visible across a room).
     pub images_with_distant_robot_in_view: usize,
@@ -317,7 +324,15 @@ impl TeamMetrics {
             resent_orders: r.resent_orders,
             images_with_robot_in_view: in_view,
             images_with_distant_robot_in_view: distant,
-            localization: Vec::new(),
+            localization: crate::localize::in_lockstep(r, output),
+            localization_child: r.tour.as_ref().map(|t| t.child.clone()),
+            localized_min: r
+                .tour
+                .as_ref()
+                .filter(|t| !t.timed_out)
+                .and_then(|t| t.over_ns)
+                .map(|ns| ns as f64 / 60e9),
+            localization_timed_out: r.tour.as_ref().is_some_and(|t| t.timed_out),
             parent_localization: ParentLocalization::of(output, &outcome.parent),
             tracking: Tracking::of(scenario, r, truth),
         }
