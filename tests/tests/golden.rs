@@ -273,6 +273,13 @@ fn assert_tracking(tracking: &Value, min_fixes: u64) {
 // (10 farther before), and its mission is 24.4 min (27.1). village-short did not move.
 // Before: lab 081d484d / a511e2ad, indoor-team ce0ff31c / 7820fe69, indoor-grid-20 f24b3033.
 
+// The lab and indoor-team digests moved when the children's localization moved into the tick
+// loop (issue 18): after the mapping the parent sends the first child the database by radio,
+// the child drives a 20-move path on its own and localizes with its particle filters
+// (`pf-wgoh` and `pf-pixelwise` trajectories), and the run ends with its report. The mapping
+// itself did not change. indoor-grid-20 (no images) and village-short did not move. Before:
+// lab 8c49992a / 89c70820, indoor-team a28f5e14 / 33a7e2a0.
+
 /// The lab mission of seed 002 in lockstep, beside its digest: the parent teleoperates the
 /// children, the children image every vertex, and the images localize (this was
 /// `tests/team.rs`'s lab test, which made four more lab runs).
@@ -285,12 +292,12 @@ fn golden_lab_mission() {
             (
                 LAVAPIPE.0,
                 LAVAPIPE.1,
-                "8c49992a39f1a233829ce482be7d620e4fd088c6a6deb039ee19c3b1d04d9f3b",
+                "543b2568b0ebb40214b88a35d8e69b7dc55a8db78bd1b4c0f25266160c3449e4",
             ),
             (
                 LLVMPIPE_GL.0,
                 LLVMPIPE_GL.1,
-                "89c708209c90a7c111d555853cfa8024ac9ac175d88a657115fb5d7aa71758a4",
+                "fb6cab1291a0e7f2163943281b63f4f43da42b8d670fad91d6ba11b6e738f3f0",
             ),
         ],
         &lab_outputs,
@@ -336,8 +343,13 @@ fn lab_outputs(out: &Path) {
     // Mission time in the range of the seed's 38.4 min (our children turn faster).
     let minutes = t["mission_min"].as_f64().unwrap();
     assert!((15.0..45.0).contains(&minutes), "{minutes} min");
-    // The run ended with the mission, not at the scenario's hour.
-    assert!(m["sim_secs"].as_f64().unwrap() < minutes * 60.0 + 3.0);
+    // The run ended with the mission and the child's localization run after it, not at the
+    // scenario's hour: 20 moves of 0.5 m at 0.15 m/s, with turns and grabs, take minutes.
+    let localized = t["localized_min"]
+        .as_f64()
+        .expect("the localization run ended");
+    assert!(localized > minutes && localized < minutes + 10.0, "{t}");
+    assert!(m["sim_secs"].as_f64().unwrap() < localized * 60.0 + 3.0);
     // The database: one PNG per imaged vertex, and the plots.
     let images = std::fs::read_dir(out.join("coverage/images"))
         .unwrap()
@@ -346,8 +358,13 @@ fn lab_outputs(out: &Path) {
     for plot in ["coverage-plan.png", "coverage-paths.png"] {
         assert!(out.join("plots").join(plot).is_file(), "{plot}");
     }
-    // The particle filter on a new path converged with both features.
-    for run in t["localization"].as_array().unwrap() {
+    // The child sent the database after mapping drove its 20 moves on its own (an image
+    // before the first and after each), and localized with both features: the error ends
+    // within one grid spacing d = 0.5 m and stays there.
+    let runs = t["localization"].as_array().unwrap();
+    assert_eq!(runs.len(), 2, "{t}");
+    for run in runs {
+        assert_eq!(run["steps"], 21, "{run}");
         assert!(run["converged_at"].is_u64(), "{run}");
         assert!(run["final_error_m"].as_f64().unwrap() < 0.5, "{run}");
     }
@@ -406,18 +423,27 @@ fn golden_indoor_team_mission() {
             (
                 LAVAPIPE.0,
                 LAVAPIPE.1,
-                "a28f5e1468ae54b3af8dba4aad4cb92d0afa94f1b8cbfb41b4afee144ec6b67e",
+                "22b0599c98423604eeb54d716d9ec15aa816d19e75ba705cc2beb379481041eb",
             ),
             (
                 LLVMPIPE_GL.0,
                 LLVMPIPE_GL.1,
-                "33a7e2a041ef74ad95c2d9f076d51fab4b1830b45612e84baa8316d31f426230",
+                "9f9c460a6520b4470aa2d2f3bcb587b412f3774e8aafe4c694207d40eea55054",
             ),
         ],
         &|out| {
             let t = &metrics(out)["team"];
             assert_eq!(t["imaged_fraction"], 1.0, "{t}");
             assert_tracking(&t["tracking"], 10_000);
+            // child1 ends the mapping boxed in by the others: the first child that can move
+            // drives the 20 moves and localizes within one grid spacing.
+            assert!(t["localized_min"].is_f64(), "{t}");
+            let runs = t["localization"].as_array().unwrap();
+            assert_eq!(runs.len(), 2, "{t}");
+            for run in runs {
+                assert_eq!(run["steps"], 21, "{run}");
+                assert!(run["final_error_m"].as_f64().unwrap() < 0.5, "{run}");
+            }
         },
     );
 }
