@@ -198,3 +198,6 @@ impl ParentStack {
         (path.len() > 1).then_some(path)
     }
 }
+
+#[cfg(test)]
+mod tests;

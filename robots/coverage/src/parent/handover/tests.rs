@@ -1,0 +1,204 @@
+//! The parent's side of the handover against hand-made replies: the database is repeated
+//! until the child acknowledges it, then small polls until the child's report comes, which
+//! the radio may lose; a child that never answers is given up at the deadline.
+
+use super::super::{dist, ParentParams};
+use super::*;
+use crate::report::DatabaseImage;
+use hetsim_msgs::{
+    pose_from_xyz_rpy, CoverageMission, Image, Mission, OccupancyGrid, PixelEncoding, RobotStack,
+};
+use hetsim_pilot::{GroundPilotParams, Steering};
+
+const S: u64 = 1_000_000_000;
+const STEPS: usize = 3;
+
+/// A parent whose mapping of a free 4 x 3 room of 0.5 m cells (8 x 6) is done: it stands in
+/// the far corner, its one child at (0, 0), one image in the database.
+fn mapped_parent() -> ParentStack {
+    let grid = OccupancyGrid {
+        origin_x: 0.0,
+        origin_y: 0.0,
+        cell_m: 0.5,
+        cols: 8,
+        rows: 6,
+        occupied: vec![false; 48],
+    };
+    let mission = CoverageMission {
+        grid,
+        children: vec![("child1".into(), (0, 0))],
+        r_los_m: 2.0,
+        direction: "east".into(),
+        child_fov_deg: 80.0,
+        view_margin_deg: 0.0,
+        parent_radius_m: 0.2,
+        child_radius_m: 0.06,
+        f_factor: 2.0,
+        child_speed_mps: 0.15,
+        parent_start: [3.75, 2.75, 0.0],
+        localize_steps: STEPS,
+    };
+    let pilot = GroundPilotParams {
+        track_m: 0.35,
+        max_wheel_mps: 0.5,
+        cruise_mps: 0.3,
+        max_yaw_rate_radps: 1.0,
+        arrive_m: 0.05,
+        steering: Steering::Smooth {
+            turn_in_place_rad: 1.0,
+        },
+    };
+    let mut p = ParentStack::new(
+        ParentParams::with_pilot(pilot),
+        &Mission::CoverageParent(mission),
+    );
+    let pose = pose_from_xyz_rpy([3.75, 2.75, 0.0], [0.0; 3]);
+    p.pose = Some(pose);
+    p.make_plan(&pose);
+    assert!(p.plan.is_some(), "a free room has a plan");
+    let gray = crate::localize::tests::room(0.25, 0.25);
+    p.report.database.push(DatabaseImage {
+        vertex: (0, 0),
+        child: "child1".into(),
+        estimated_xy: [0.25, 0.25],
+        estimated_heading_rad: 0.0,
+        image: Image {
+            stamp_ns: S,
+            sensor: "camera".into(),
+            width: gray.width as u32,
+            height: gray.height as u32,
+            encoding: PixelEncoding::Rgb8,
+            data: gray.data.iter().flat_map(|g| [*g as u8; 3]).collect(),
+        },
+    });
+    p.report.finished_ns = Some(10 * S);
+    p
+}
+
+/// The parent's handover step at `now_ns`, and what it sent.
+fn at(p: &mut ParentStack, now_ns: u64) -> Vec<TeamMsg> {
+    p.now_ns = now_ns;
+    p.hand_over();
+    p.outbox()
+        .iter()
+        .inspect(|o| assert_eq!(o.to, "child1"))
+        .map(|o| postcard::from_bytes(&o.payload).unwrap())
+        .collect()
+}
+
+fn is_database(m: &TeamMsg) -> bool {
+    matches!(m, TeamMsg::Localize { .. })
+}
+
+/// The documented rhythm (every ten `resend_ns`: 5 s here), the switch from the database to
+/// polls once acknowledged, and a lost report: the parent polls on, and the mission ends
+/// only when a report reaches it.
+#[test]
+fn the_parent_repeats_the_database_then_polls_until_the_report_comes() {
+    let mut p = mapped_parent();
+    let t0 = 10 * S;
+    let sent = at(&mut p, t0);
+    assert_eq!(sent.len(), 1);
+    let TeamMsg::Localize {
+        seq, path, places, ..
+    } = &sent[0]
+    else {
+        panic!("the database first, got {:?}", sent[0]);
+    };
+    let seq = *seq;
+    assert_eq!(places.len(), 1, "the database's one image");
+    assert_eq!(
+        path.len(),
+        STEPS + 1,
+        "the child's vertex, then a move per step"
+    );
+    assert_eq!(
+        path[0],
+        [0.25, 0.25],
+        "from where the parent last had the child"
+    );
+    // Every move is one grid step, and none onto the parent's vertex.
+    for w in path.windows(2) {
+        let d = dist(w[0], w[1]);
+        assert!((d - 0.5).abs() < 1e-9, "a move of {d} m");
+        assert!(
+            dist(w[1], [3.75, 2.75]) > 0.25,
+            "onto the parent at {:?}",
+            w[1]
+        );
+    }
+    assert!(!p.status().mission_over);
+
+    // Not heard: nothing until 5 s, then the database again.
+    assert!(at(&mut p, t0 + 5 * S - 1).is_empty());
+    let again = at(&mut p, t0 + 5 * S);
+    assert!(again.len() == 1 && is_database(&again[0]), "{again:?}");
+    assert_eq!(p.report.resent_orders, 1);
+
+    // An acknowledgement of another message is not this one's.
+    assert!(!p.handover_reply(0, &TeamMsg::Ack { seq: seq + 1 }));
+    assert!(p.handover_reply(0, &TeamMsg::Ack { seq }));
+    // Heard: small polls from now on, never the database.
+    let poll = at(&mut p, t0 + 10 * S);
+    assert_eq!(poll, vec![TeamMsg::Poll { seq }]);
+    assert_eq!(p.report.resent_orders, 1, "a poll is not a resent order");
+
+    // The child's report is lost: the parent keeps polling, and the mission is not over.
+    for k in 3..6 {
+        assert_eq!(at(&mut p, t0 + 5 * k * S), vec![TeamMsg::Poll { seq }]);
+        assert!(!p.status().mission_over);
+    }
+    // A report for another sequence number is not this run's.
+    assert!(!p.handover_reply(0, &TeamMsg::Localized { seq: seq + 1 }));
+    assert!(!p.status().mission_over);
+    // The next report arrives.
+    let heard = t0 + 27 * S;
+    p.now_ns = heard;
+    assert!(p.handover_reply(0, &TeamMsg::Localized { seq }));
+    assert!(p.status().mission_over);
+    assert!(
+        at(&mut p, t0 + 40 * S).is_empty(),
+        "nothing after the report"
+    );
+    let tour = p.team_report().tour.expect("the run is reported");
+    assert_eq!(tour.child, "child1");
+    assert_eq!(tour.path.len(), STEPS + 1);
+    assert_eq!(tour.over_ns, Some(heard));
+    assert!(!tour.timed_out);
+    // A repeated report changes nothing.
+    p.now_ns = t0 + 50 * S;
+    assert!(p.handover_reply(0, &TeamMsg::Localized { seq }));
+    assert_eq!(p.team_report().tour.unwrap().over_ns, Some(heard));
+}
+
+/// A child that never answers (stuck, or out of radio range) does not hold the run open:
+/// the documented deadline is a minute per move, and the report says the run timed out.
+#[test]
+fn a_child_that_never_answers_is_given_up_at_the_deadline() {
+    let mut p = mapped_parent();
+    let t0 = 10 * S;
+    assert_eq!(at(&mut p, t0).len(), 1);
+    let mut t = t0;
+    // Up to a minute per move: the database, every 5 s, and the run still on.
+    while t + 5 * S < t0 + 60 * S * STEPS as u64 {
+        t += 5 * S;
+        let sent = at(&mut p, t);
+        assert!(sent.len() == 1 && is_database(&sent[0]), "at {t}: {sent:?}");
+        assert!(!p.status().mission_over, "over at {t}");
+    }
+    // Within one more minute it is given up, and nothing is sent after.
+    let mut given_up = None;
+    while t < t0 + 60 * S * (STEPS as u64 + 1) {
+        t += S;
+        at(&mut p, t);
+        if p.status().mission_over {
+            given_up = Some(t);
+            break;
+        }
+    }
+    let given_up = given_up.expect("given up within a minute per move and one more");
+    assert!(at(&mut p, given_up + 20 * S).is_empty());
+    let tour = p.team_report().tour.unwrap();
+    assert!(tour.timed_out);
+    assert_eq!(tour.over_ns, Some(given_up));
+}
