@@ -196,8 +196,7 @@ pub struct ParentStack {
     looked: Option<(u64, u64)>,
     report: TeamReport,
     /// After mapping: the database's delivery and a child's localization run.
-    handover: Option<handover::Handover>,
-    handover_tried: bool,
+    handover: handover::Delivery,
     outbox: Vec<Outgoing>,
     now_ns: u64,
 }
@@ -303,8 +302,7 @@ impl ParentStack {
             children,
             looked: None,
             report: TeamReport::default(),
-            handover: None,
-            handover_tried: false,
+            handover: handover::Delivery::NotYet,
             outbox: Vec::new(),
             now_ns: 0,
         }
@@ -584,7 +582,7 @@ impl ParentStack {
             .iter()
             .map(|c| (c.name.clone(), c.path.clone()))
             .collect();
-        r.tour = self.handover.as_ref().map(|h| crate::report::TourReport {
+        r.tour = self.handover.sent().map(|h| crate::report::TourReport {
             child: self.children[h.child].name.clone(),
             path: h.path.clone(),
             over_ns: h.over_ns,

@@ -28,6 +28,28 @@ use hetsim_vision::Gray;
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
+/// What became of the database after the mapping.
+#[derive(Clone, Debug, PartialEq)]
+pub(super) enum Delivery {
+    /// Not tried yet: the mapping is not done.
+    NotYet,
+    /// Tried, and nothing sent: no run asked for, or none possible (no database, no child
+    /// that can move).
+    Nothing,
+    /// Sent to a child: the run is over when it reports, or at the deadline.
+    Sent(Handover),
+}
+
+impl Delivery {
+    /// The run, if the database was sent.
+    pub(super) fn sent(&self) -> Option<&Handover> {
+        match self {
+            Self::Sent(h) => Some(h),
+            _ => None,
+        }
+    }
+}
+
 /// The database's delivery and the child's localization run.
 #[derive(Clone, Debug, PartialEq)]
 pub(super) struct Handover {
@@ -54,26 +76,27 @@ impl ParentStack {
         if self.report.finished_ns.is_none() || self.plan.is_none() {
             return;
         }
-        match self.handover.as_mut() {
-            None if !self.handover_tried => {
-                self.handover_tried = true;
-                self.handover = self.start_handover();
-                if let Some(h) = &self.handover {
-                    let name = &self.children[h.child].name;
-                    self.outbox.push(h.msg.to(name));
-                }
+        let resend_ns = 10 * self.params.resend_ns;
+        match &mut self.handover {
+            Delivery::NotYet => {
+                self.handover = match self.start_handover() {
+                    Some(h) => {
+                        let name = &self.children[h.child].name;
+                        self.outbox.push(h.msg.to(name));
+                        Delivery::Sent(h)
+                    }
+                    None => Delivery::Nothing,
+                };
             }
             // Not heard: the database again every ten `resend_ns` (it is large: about 90 kB
             // for the lab, 0.7 s on a 1 Mbit/s radio). Heard: a small poll as often, which
             // the child answers with its report once there is one (the radio may lose it).
             // Past the deadline the run is given up (`timed_out`).
-            Some(h) if h.over_ns.is_none() && self.now_ns >= h.deadline_ns => {
+            Delivery::Sent(h) if h.over_ns.is_none() && self.now_ns >= h.deadline_ns => {
                 h.over_ns = Some(self.now_ns);
                 h.timed_out = true;
             }
-            Some(h)
-                if h.over_ns.is_none() && self.now_ns >= h.sent_ns + 10 * self.params.resend_ns =>
-            {
+            Delivery::Sent(h) if h.over_ns.is_none() && self.now_ns >= h.sent_ns + resend_ns => {
                 h.sent_ns = self.now_ns;
                 let name = &self.children[h.child].name;
                 if h.acked {
@@ -90,9 +113,12 @@ impl ParentStack {
     /// Whether nothing is left to do after the mapping: no localization run asked for, none
     /// possible, or the child's is over.
     pub(super) fn handover_over(&self) -> bool {
-        // Tried: sent (then over when the child says so), or no path was possible.
         !self.handover_wanted()
-            || (self.handover_tried && self.handover.as_ref().is_none_or(|h| h.over_ns.is_some()))
+            || match &self.handover {
+                Delivery::NotYet => false,
+                Delivery::Nothing => true,
+                Delivery::Sent(h) => h.over_ns.is_some(),
+            }
     }
 
     fn handover_wanted(&self) -> bool {
@@ -105,9 +131,12 @@ impl ParentStack {
     /// A reply to the database's message; `false` if `msg` is not one.
     pub(super) fn handover_reply(&mut self, child: usize, msg: &TeamMsg) -> bool {
         let now = self.now_ns;
-        let Some(h) = self.handover.as_mut().filter(|h| h.child == child) else {
+        let Delivery::Sent(h) = &mut self.handover else {
             return false;
         };
+        if h.child != child {
+            return false;
+        }
         match *msg {
             TeamMsg::Ack { seq } if seq == h.seq => h.acked = true,
             TeamMsg::Localized { seq } if seq == h.seq => {

@@ -202,3 +202,16 @@ fn a_child_that_never_answers_is_given_up_at_the_deadline() {
     assert!(tour.timed_out);
     assert_eq!(tour.over_ns, Some(given_up));
 }
+
+/// With no run asked for (`localize_steps = 0`), nothing is sent and the mission is over
+/// with the mapping.
+#[test]
+fn no_run_asked_for_sends_nothing() {
+    let mut p = mapped_parent();
+    p.mission.localize_steps = 0;
+    assert!(p.status().mission_over);
+    assert!(at(&mut p, 10 * S).is_empty());
+    assert!(at(&mut p, 100 * S).is_empty());
+    assert!(p.status().mission_over);
+    assert_eq!(p.team_report().tour, None);
+}
