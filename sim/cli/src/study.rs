@@ -340,7 +340,7 @@ pub fn localize(
     hetsim_core::files::write_atomic(&out.join("localization.md"), md.as_bytes())?;
     let png = hetsim_eval::charts::localization_png(
         &format!(
-            "{}: particle filter error along {paths} new paths, by image feature",
+            "{}: particle filter error along {paths} paths driven in lockstep after mapping",
             base.file.name
         ),
         &pf,

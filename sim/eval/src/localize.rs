@@ -392,14 +392,19 @@ pub fn markdown(s: &Summary) -> String {
             100.0 * c.same_vertex
         );
     }
+    // The worst path beside the mean: a mean can hide one that never converged.
     for p in &s.particle_filter {
+        let largest = p.runs.iter().map(|r| r.final_error_m).fold(0.0, f64::max);
+        let slowest = p.runs.iter().filter_map(|r| r.converged_at).max();
         t += &format!(
-            "| particle filter, {}: final error over {} paths (converged; images to converge) | {} ({}; {:.1}) | - |\n",
+            "| particle filter in lockstep, {}: final error over {} paths, largest (converged; images to converge, most) | {}, {:.2} m ({}; {:.1}, {}) | - |\n",
             p.feature,
             p.paths,
             ms(&p.final_error_m, " m"),
+            largest,
             p.converged,
-            p.images_to_converge.mean
+            p.images_to_converge.mean,
+            slowest.map_or("-".into(), |c| (c + 1).to_string())
         );
     }
     t
