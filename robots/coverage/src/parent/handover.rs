@@ -183,7 +183,7 @@ impl ParentStack {
             sent_ns: self.now_ns,
             over_ns: None,
             timed_out: false,
-            deadline_ns: self.now_ns + 60_000_000_000 * path.len() as u64,
+            deadline_ns: self.now_ns + 60_000_000_000 * (path.len() - 1) as u64,
             path: path.iter().map(|v| self.map.cell(*v)).collect(),
         })
     }

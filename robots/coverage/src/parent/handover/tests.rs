@@ -13,8 +13,8 @@ use hetsim_pilot::{GroundPilotParams, Steering};
 const S: u64 = 1_000_000_000;
 const STEPS: usize = 3;
 
-/// A parent whose mapping of a free 4 x 3 room of 0.5 m cells (8 x 6) is done: it stands in
-/// the far corner, its one child at (0, 0), one image in the database.
+/// A parent whose mapping of a free 4 x 3 room of 0.5 m cells (8 x 6) is done: it stands on
+/// (1, 0), beside its one child at (0, 0); one image in the database.
 fn mapped_parent() -> ParentStack {
     let grid = OccupancyGrid {
         origin_x: 0.0,
@@ -35,7 +35,7 @@ fn mapped_parent() -> ParentStack {
         child_radius_m: 0.06,
         f_factor: 2.0,
         child_speed_mps: 0.15,
-        parent_start: [3.75, 2.75, 0.0],
+        parent_start: [0.75, 0.25, 0.0],
         localize_steps: STEPS,
     };
     let pilot = GroundPilotParams {
@@ -52,7 +52,7 @@ fn mapped_parent() -> ParentStack {
         ParentParams::with_pilot(pilot),
         &Mission::CoverageParent(mission),
     );
-    let pose = pose_from_xyz_rpy([3.75, 2.75, 0.0], [0.0; 3]);
+    let pose = pose_from_xyz_rpy([0.75, 0.25, 0.0], [0.0; 3]);
     p.pose = Some(pose);
     p.make_plan(&pose);
     assert!(p.plan.is_some(), "a free room has a plan");
@@ -90,12 +90,13 @@ fn is_database(m: &TeamMsg) -> bool {
     matches!(m, TeamMsg::Localize { .. })
 }
 
-/// The documented rhythm (every ten `resend_ns`: 5 s here), the switch from the database to
-/// polls once acknowledged, and a lost report: the parent polls on, and the mission ends
-/// only when a report reaches it.
+/// The documented rhythm (every ten `resend_ns`), the switch from the database to polls
+/// once acknowledged, and a lost report: the parent polls on, and the mission ends only when
+/// a report reaches it.
 #[test]
 fn the_parent_repeats_the_database_then_polls_until_the_report_comes() {
     let mut p = mapped_parent();
+    let every = 10 * p.params.resend_ns;
     let t0 = 10 * S;
     let sent = at(&mut p, t0);
     assert_eq!(sent.len(), 1);
@@ -117,42 +118,42 @@ fn the_parent_repeats_the_database_then_polls_until_the_report_comes() {
         [0.25, 0.25],
         "from where the parent last had the child"
     );
-    // Every move is one grid step, and none onto the parent's vertex.
+    // Every move is one grid step, and none onto the parent's vertex: the first can only be
+    // north, (1, 0) being the parent's.
+    assert_eq!(path[1], [0.25, 0.75]);
     for w in path.windows(2) {
         let d = dist(w[0], w[1]);
         assert!((d - 0.5).abs() < 1e-9, "a move of {d} m");
-        assert!(
-            dist(w[1], [3.75, 2.75]) > 0.25,
-            "onto the parent at {:?}",
-            w[1]
-        );
+        assert_ne!(w[1], [0.75, 0.25], "onto the parent");
     }
     assert!(!p.status().mission_over);
 
-    // Not heard: nothing until 5 s, then the database again.
-    assert!(at(&mut p, t0 + 5 * S - 1).is_empty());
-    let again = at(&mut p, t0 + 5 * S);
+    // Not heard: nothing until ten resend_ns have passed, then the database again.
+    assert!(at(&mut p, t0 + every - 1).is_empty());
+    let again = at(&mut p, t0 + every);
     assert!(again.len() == 1 && is_database(&again[0]), "{again:?}");
     assert_eq!(p.report.resent_orders, 1);
 
     // An acknowledgement of another message is not this one's.
     assert!(!p.handover_reply(0, &TeamMsg::Ack { seq: seq + 1 }));
+    // Nor is another child's.
+    assert!(!p.handover_reply(1, &TeamMsg::Ack { seq }));
     assert!(p.handover_reply(0, &TeamMsg::Ack { seq }));
     // Heard: small polls from now on, never the database.
-    let poll = at(&mut p, t0 + 10 * S);
+    let poll = at(&mut p, t0 + 2 * every);
     assert_eq!(poll, vec![TeamMsg::Poll { seq }]);
     assert_eq!(p.report.resent_orders, 1, "a poll is not a resent order");
 
     // The child's report is lost: the parent keeps polling, and the mission is not over.
     for k in 3..6 {
-        assert_eq!(at(&mut p, t0 + 5 * k * S), vec![TeamMsg::Poll { seq }]);
+        assert_eq!(at(&mut p, t0 + k * every), vec![TeamMsg::Poll { seq }]);
         assert!(!p.status().mission_over);
     }
     // A report for another sequence number is not this run's.
     assert!(!p.handover_reply(0, &TeamMsg::Localized { seq: seq + 1 }));
     assert!(!p.status().mission_over);
     // The next report arrives.
-    let heard = t0 + 27 * S;
+    let heard = t0 + 5 * every + S;
     p.now_ns = heard;
     assert!(p.handover_reply(0, &TeamMsg::Localized { seq }));
     assert!(p.status().mission_over);
@@ -166,7 +167,7 @@ fn the_parent_repeats_the_database_then_polls_until_the_report_comes() {
     assert_eq!(tour.over_ns, Some(heard));
     assert!(!tour.timed_out);
     // A repeated report changes nothing.
-    p.now_ns = t0 + 50 * S;
+    p.now_ns = t0 + 10 * every;
     assert!(p.handover_reply(0, &TeamMsg::Localized { seq }));
     assert_eq!(p.team_report().tour.unwrap().over_ns, Some(heard));
 }
@@ -176,31 +177,44 @@ fn the_parent_repeats_the_database_then_polls_until_the_report_comes() {
 #[test]
 fn a_child_that_never_answers_is_given_up_at_the_deadline() {
     let mut p = mapped_parent();
+    let every = 10 * p.params.resend_ns;
     let t0 = 10 * S;
     assert_eq!(at(&mut p, t0).len(), 1);
+    let deadline = t0 + 60 * S * STEPS as u64;
+    // Up to the deadline: the database at its rhythm, and the run still on.
     let mut t = t0;
-    // Up to a minute per move: the database, every 5 s, and the run still on.
-    while t + 5 * S < t0 + 60 * S * STEPS as u64 {
-        t += 5 * S;
+    while t + every < deadline {
+        t += every;
         let sent = at(&mut p, t);
         assert!(sent.len() == 1 && is_database(&sent[0]), "at {t}: {sent:?}");
-        assert!(!p.status().mission_over, "over at {t}");
     }
-    // Within one more minute it is given up, and nothing is sent after.
-    let mut given_up = None;
-    while t < t0 + 60 * S * (STEPS as u64 + 1) {
-        t += S;
-        at(&mut p, t);
-        if p.status().mission_over {
-            given_up = Some(t);
-            break;
-        }
-    }
-    let given_up = given_up.expect("given up within a minute per move and one more");
-    assert!(at(&mut p, given_up + 20 * S).is_empty());
+    at(&mut p, deadline - 1);
+    assert!(!p.status().mission_over, "over before the deadline");
+    at(&mut p, deadline);
+    assert!(p.status().mission_over, "not over at the deadline");
+    assert!(
+        at(&mut p, deadline + 2 * every).is_empty(),
+        "sent after giving up"
+    );
     let tour = p.team_report().tour.unwrap();
     assert!(tour.timed_out);
-    assert_eq!(tour.over_ns, Some(given_up));
+    assert_eq!(tour.over_ns, Some(deadline));
+}
+
+/// A run asked for but impossible (the parent cannot place its child on a vertex, so no
+/// path): tried once, nothing sent, and the mission over then, not before.
+#[test]
+fn a_run_that_is_impossible_sends_nothing_and_ends_the_mission() {
+    let mut p = mapped_parent();
+    p.children[0].planned = [-1.0, -1.0];
+    assert!(
+        !p.status().mission_over,
+        "over before the handover was tried"
+    );
+    assert!(at(&mut p, 10 * S).is_empty());
+    assert!(p.status().mission_over);
+    assert!(at(&mut p, 100 * S).is_empty());
+    assert_eq!(p.team_report().tour, None);
 }
 
 /// With no run asked for (`localize_steps = 0`), nothing is sent and the mission is over
@@ -214,4 +228,20 @@ fn no_run_asked_for_sends_nothing() {
     assert!(at(&mut p, 100 * S).is_empty());
     assert!(p.status().mission_over);
     assert_eq!(p.team_report().tour, None);
+}
+
+/// Whatever the seed, the walk never steps onto the vertex where the parent stands: from
+/// (0, 0), with the parent on (1, 0), the first move is always north.
+#[test]
+fn the_walk_never_steps_onto_the_parent() {
+    let mut p = mapped_parent();
+    let parent = p.map.at(1, 0).unwrap();
+    let north = p.map.at(0, 1).unwrap();
+    for seed in 0..16 {
+        p.params.tour_seed = seed;
+        let path = p.tour_path(0).expect("a free room has a walk");
+        assert_eq!(path.len(), STEPS + 1);
+        assert_eq!(path[1], north, "seed {seed}");
+        assert!(!path.contains(&parent), "seed {seed}: {path:?}");
+    }
 }
