@@ -265,8 +265,14 @@ pub struct Summary {
     pub images_with_robot_in_view: u64,
     /// Cross-validation (paper: WGOH 0.43 ± 0.59 m, pixelwise 0.54 ± 0.79 m).
     pub cross_validation: Vec<FeatureErrors>,
-    /// Particle filter along new paths, per feature.
+    /// Particle filter along the paths driven in lockstep after mapping, per feature.
     pub particle_filter: Vec<PathSummary>,
+    /// Runs whose child reported its localization run done.
+    pub localization_reported: usize,
+    /// Runs whose localization run the parent gave up on (no report by the deadline).
+    pub localization_timed_out: usize,
+    /// Earliest and latest sim time at which a report came, minutes.
+    pub localized_min_range: Option<[f64; 2]>,
 }
 
 /// The particle filter's results over several paths, for one feature.
@@ -333,7 +339,23 @@ pub fn summarize(
             }
         })
         .collect();
+    let reported: Vec<f64> = missions
+        .iter()
+        .filter(|m| m["localization_timed_out"].as_bool() == Some(false))
+        .filter_map(|m| m["localized_min"].as_f64())
+        .collect();
     Summary {
+        localization_reported: reported.len(),
+        localization_timed_out: missions
+            .iter()
+            .filter(|m| m["localization_timed_out"].as_bool() == Some(true))
+            .count(),
+        localized_min_range: (!reported.is_empty()).then(|| {
+            [
+                reported.iter().copied().fold(f64::INFINITY, f64::min),
+                reported.iter().copied().fold(f64::NEG_INFINITY, f64::max),
+            ]
+        }),
         runs: missions.len(),
         finished: missions
             .iter()
@@ -392,12 +414,24 @@ pub fn markdown(s: &Summary) -> String {
             100.0 * c.same_vertex
         );
     }
+    t += &format!(
+        "| localization runs after mapping: reported (when, sim min), timed out | {} ({}), {} | - |\n",
+        s.localization_reported,
+        s.localized_min_range
+            .map_or("-".into(), |[a, b]| format!("{a:.1}-{b:.1}")),
+        s.localization_timed_out
+    );
     // The worst path beside the mean: a mean can hide one that never converged.
     for p in &s.particle_filter {
-        let largest = p.runs.iter().map(|r| r.final_error_m).fold(0.0, f64::max);
+        let largest = p
+            .runs
+            .iter()
+            .map(|r| r.final_error_m)
+            .max_by(f64::total_cmp)
+            .map_or("-".into(), |e| format!("{e:.2} m"));
         let slowest = p.runs.iter().filter_map(|r| r.converged_at).max();
         t += &format!(
-            "| particle filter in lockstep, {}: final error over {} paths, largest (converged; images to converge, most) | {}, {:.2} m ({}; {:.1}, {}) | - |\n",
+            "| particle filter in lockstep, {}: final error over {} paths, largest (converged; images to converge, most) | {}, {} ({}; {:.1}, {}) | - |\n",
             p.feature,
             p.paths,
             ms(&p.final_error_m, " m"),
