@@ -231,6 +231,19 @@ pub(crate) mod tests {
         }
     }
 
+    /// The room's view at a position as a camera's RGB image.
+    pub(crate) fn room_view(stamp_ns: u64, x: f64, y: f64) -> hetsim_msgs::Image {
+        let gray = room(x, y);
+        hetsim_msgs::Image {
+            stamp_ns,
+            sensor: "camera".into(),
+            width: gray.width as u32,
+            height: gray.height as u32,
+            encoding: hetsim_msgs::PixelEncoding::Rgb8,
+            data: gray.data.iter().flat_map(|g| [*g as u8; 3]).collect(),
+        }
+    }
+
     fn view(x: f64, y: f64) -> Features {
         Features::of(&room(x, y))
     }

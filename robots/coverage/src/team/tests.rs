@@ -219,18 +219,6 @@ fn a_grab_waits_for_an_image_taken_after_settling() {
 }
 
 /// The localization tests' synthetic room at a position, as an RGB camera image.
-fn room_view(stamp_ns: u64, x: f64, y: f64) -> Image {
-    let gray = crate::localize::tests::room(x, y);
-    Image {
-        stamp_ns,
-        sensor: "camera".into(),
-        width: gray.width as u32,
-        height: gray.height as u32,
-        encoding: hetsim_msgs::PixelEncoding::Rgb8,
-        data: gray.data.iter().flat_map(|g| [*g as u8; 3]).collect(),
-    }
-}
-
 /// After mapping, the database comes by radio with a path; the child drives it on its own
 /// (kinematics below, true compass, encoders of its own wheels, images of where it really
 /// is) and localizes: the run ends with `Localized`, and each feature's filter ends within
@@ -242,7 +230,7 @@ fn a_child_sent_the_database_drives_its_path_and_localizes() {
         .filter(|i| !grid.occupied[*i])
         .map(|i| {
             let xy = grid.centre_of(i % 8, i / 8);
-            let img = room_view(0, xy[0], xy[1]);
+            let img = crate::localize::tests::room_view(0, xy[0], xy[1]);
             (
                 xy,
                 Features::of(&hetsim_vision::Gray::from_image(&img).unwrap()),
@@ -310,7 +298,9 @@ fn a_child_sent_the_database_drives_its_path_and_localizes() {
             inbox.push(delivered.clone());
         }
         if c.status().wants_images {
-            inbox.push(SensorMsg::Image(room_view(now, x, y)));
+            inbox.push(SensorMsg::Image(crate::localize::tests::room_view(
+                now, x, y,
+            )));
         }
         wheels = match step(&mut c, now, &inbox) {
             Command::Wheels {

@@ -5,9 +5,7 @@
 use super::super::{dist, ParentParams};
 use super::*;
 use crate::report::DatabaseImage;
-use hetsim_msgs::{
-    pose_from_xyz_rpy, CoverageMission, Image, Mission, OccupancyGrid, PixelEncoding, RobotStack,
-};
+use hetsim_msgs::{pose_from_xyz_rpy, CoverageMission, Mission, OccupancyGrid, RobotStack};
 use hetsim_pilot::{GroundPilotParams, Steering};
 
 const S: u64 = 1_000_000_000;
@@ -56,20 +54,12 @@ fn mapped_parent() -> ParentStack {
     p.pose = Some(pose);
     p.make_plan(&pose);
     assert!(p.plan.is_some(), "a free room has a plan");
-    let gray = crate::localize::tests::room(0.25, 0.25);
     p.report.database.push(DatabaseImage {
         vertex: (0, 0),
         child: "child1".into(),
         estimated_xy: [0.25, 0.25],
         estimated_heading_rad: 0.0,
-        image: Image {
-            stamp_ns: S,
-            sensor: "camera".into(),
-            width: gray.width as u32,
-            height: gray.height as u32,
-            encoding: PixelEncoding::Rgb8,
-            data: gray.data.iter().flat_map(|g| [*g as u8; 3]).collect(),
-        },
+        image: crate::localize::tests::room_view(S, 0.25, 0.25),
     });
     p.report.finished_ns = Some(10 * S);
     p
