@@ -71,9 +71,11 @@ impl Run<'_> {
     /// One round: the children walk `walks` in parallel, one step each per timestep (a
     /// child whose next vertex is taken waits), and grab on every vertex of `set` they
     /// reach whose view is clear. A child whose view holds a robot that is walking waits
-    /// for it to pass; one whose view holds a robot that will not move this round (the
-    /// parent, a child done or itself waiting) leaves the vertex to the next round and
-    /// walks on. When nobody can move, one blocked walk is re-routed or cut short.
+    /// for it to pass, and a child done with its walk that stands in the view steps out of
+    /// it (its walk is extended to the nearest vertex outside the view) while the grabbing
+    /// child waits. One whose view holds the parent or a child itself waiting to grab
+    /// leaves the vertex to the next round and walks on. When nobody can move, one blocked
+    /// walk is re-routed or cut short.
     fn walk_roadmaps(
         &mut self,
         mut walks: Vec<Vec<Vertex>>,
@@ -88,6 +90,7 @@ impl Run<'_> {
         let n = walks.len();
         let mut idx = vec![0usize; n];
         let mut pending = vec![false; n];
+        let mut evictions = vec![0usize; n];
         loop {
             let active = (0..n).any(|j| pending[j] || idx[j] + 1 < walks[j].len());
             if !active {
@@ -135,11 +138,31 @@ impl Run<'_> {
                     self.imaged[at] = true;
                     imaged_here.push(at);
                     grabs.push((j, at));
-                } else if in_my_view
-                    .iter()
-                    .all(|&k| k > 0 && idx[k - 1] + 1 < walks[k - 1].len() && !was_pending[k - 1])
-                {
-                    *waiting = true;
+                } else if in_my_view.iter().all(|&k| k > 0 && !was_pending[k - 1]) {
+                    // Walking robots pass; a child done with its walk steps out of the view.
+                    let done = |k: usize| idx[k - 1] + 1 >= walks[k - 1].len();
+                    let ways_out: Option<Vec<(usize, Vec<Vertex>)>> = in_my_view
+                        .iter()
+                        .filter(|&&k| done(k))
+                        .map(|&k| {
+                            // At most 2N times a round, so that two grabs cannot send a
+                            // child back and forth for ever.
+                            (evictions[k - 1] < 2 * n)
+                                .then(|| self.out_of_view(k, at, parent))
+                                .flatten()
+                                .map(|path| (k, path))
+                        })
+                        .collect();
+                    match ways_out {
+                        Some(ways_out) => {
+                            for (k, path) in ways_out {
+                                evictions[k - 1] += 1;
+                                walks[k - 1].extend(path.into_iter().skip(1));
+                            }
+                            *waiting = true;
+                        }
+                        None => in_set[at] = false,
+                    }
                 } else {
                     // Left for the next round.
                     in_set[at] = false;
@@ -164,6 +187,17 @@ impl Run<'_> {
                 None => walks[j].truncate(idx[j] + 1),
             }
         }
+    }
+
+    /// The shortest way for child `robot` to the nearest vertex outside the view of a child
+    /// grabbing at `at`, through vertices nobody holds and never the parent's `parent`.
+    fn out_of_view(&self, robot: usize, at: Vertex, parent: Vertex) -> Option<Vec<Vertex>> {
+        let (map, params) = (self.map, self.params);
+        self.map.path_to(
+            self.pos[robot],
+            |v| v != parent && !in_view(map, params, at, v, params.child_radius_m),
+            |v| v != parent && !self.occupied_by_other(robot, v),
+        )
     }
 
     /// `walk` (child `robot` stands on `walk[at]`) re-routed around the other robots: to the
@@ -276,5 +310,71 @@ impl Run<'_> {
             self.push(Phase::Mapping, Vec::new());
         }
         Ok(Some(robot - 1))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::moves::tests::run_on;
+    use super::*;
+
+    #[test]
+    fn a_child_done_with_its_walk_steps_out_of_a_grabbing_childs_view() {
+        // Child 1 (row 4, column 7) has finished its walk and stands due east of the vertex
+        // child 2 walks to, in the middle of its camera's view. The grab is made in the same
+        // round: child 1 steps out of the view and child 2 waits for it, instead of leaving
+        // the vertex to a later round.
+        let rows = [
+            "..........",
+            "..........",
+            "..........",
+            "..........",
+            "P.k....k..",
+            "..........",
+            "..........",
+            "..........",
+            "..........",
+        ];
+        let map = Map::from_text(&rows, 0.5);
+        let params = CoverageParams {
+            children: 2,
+            ..CoverageParams::default()
+        };
+        let vis = Visibility::compute(&map, &params);
+        let mut run = run_on(&map, &params, &vis, &rows);
+        let at = |c: i64| map.at(c, 4).unwrap();
+        let (first, second) = (run.pos[1], run.pos[2]);
+        assert_eq!((first, second), (at(2), at(7)), "children in scan order");
+        let target = at(4);
+        assert!(in_view(
+            &map,
+            &params,
+            target,
+            second,
+            params.child_radius_m
+        ));
+        let walks = vec![vec![at(2), at(3), target], vec![second]];
+        let mut imaged = Vec::new();
+        run.walk_roadmaps(walks, &[target], &mut imaged);
+        assert_eq!(imaged, vec![target], "the grab is made in the round");
+        let grab = run
+            .frames
+            .iter()
+            .find(|f| !f.grabs.is_empty())
+            .expect("a frame with the grab");
+        assert_eq!(grab.grabs, vec![(0, target)]);
+        // At the grab nobody is in the grabbing child's view, and the child that stepped
+        // aside never stood on the parent's vertex.
+        assert_eq!(grab.positions[1], target);
+        for k in [0, 2] {
+            assert!(!in_view(
+                &map,
+                &params,
+                target,
+                grab.positions[k],
+                run.radius(k)
+            ));
+        }
+        assert!(run.frames.iter().all(|f| f.positions[2] != f.positions[0]));
     }
 }
