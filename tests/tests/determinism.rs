@@ -95,10 +95,11 @@ fn thread_count_does_not_change_the_digest() {
 /// gone (before: c74cb72c). It moved with the coverage planner's team moving together and
 /// its view check at any distance (issue 18): the plan in the run's `metrics.json` changed
 /// (before: 9bc02b3d). It moved when the planner's children began to step out of a grabbing
-/// child's view when done, to grow their roadmaps in time and to take goals that keep their
-/// paths from crossing (issue 18; before: 91f31c94).
+/// child's view when done, to grow their roadmaps in time, each hilling if it can, and to
+/// take goals in the same order as their starts (issue 18; before: 91f31c94; b6715f78 at
+/// d43f3dd, before each graph hilled if it could).
 const GOLDEN_INDOOR_20_SEED_7_10S: &str =
-    "b6715f7862047a10d51f6bb805b7da686a3661fe1eff30224d6bceca5663bdda";
+    "b66d9f87feefe660492de8c882fa40154555923a1e3870859ea4aebaca7484db";
 
 #[test]
 fn golden_digest_of_a_short_indoor_run() {

@@ -20,13 +20,13 @@
 //!   view (the view cone of [`crate::visibility`], robots as discs, at any distance). A child
 //!   with a walking robot in view waits for it to pass; a child done with its walk that
 //!   stands in the view steps out of it to the nearest vertex outside it while the grabbing
-//!   child waits; one whose view holds the parent or a child itself waiting leaves the
-//!   vertex and walks on. (Until 2026-11 a child done with its walk stayed where it was and
-//!   the vertex was left: 2 m, 20 %, 8 children, mapping 7862 timesteps, now 4574 with the
-//!   roadmap changes of [`crate::roadmap`].) A stage runs in rounds: what a round could not image gets new roadmaps
-//!   from where the children stand, while a round images anything; the rest is mopped up one
-//!   vertex at a time (the nearest child goes there, robots in its view step out of it, it
-//!   grabs). Under [`ViewRule::StartPoints`] (a relaxation, for comparison with the paper)
+//!   child waits; one whose view holds the parent or a child itself waiting (or a done
+//!   child with no way out) leaves the vertex and walks on. (Until 2026-11 a child done
+//!   with its walk stayed where it was and the vertex was left; measured effect: README,
+//!   "Mapping with many children".) A stage runs in rounds: what a round could not
+//!   image gets new roadmaps from where the children stand, while a round images anything;
+//!   the rest is mopped up one vertex at a time (the nearest child goes there, robots in its
+//!   view step out of it, it grabs). Under [`ViewRule::StartPoints`] (a relaxation, for comparison with the paper)
 //!   only the stages' starting points are kept out of each other's views.
 //! * **C(t)** is LOS_free(v_p^t) minus V_p minus what is already imaged, so a vertex a stage
 //!   could not image is tried again by later stages; what no stage images is reported.

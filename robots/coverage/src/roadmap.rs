@@ -7,10 +7,11 @@
 //! * **Goal points** lie in C no further back than their start along the direction of
 //!   mapping; the first is the most advanced, each next one maximises its smallest distance
 //!   to the goals already chosen (spread). The goals are then paired with the starts in the
-//!   same order across the direction of mapping (where each stays ahead of its start), so
-//!   that the paths do not cross: crossing paths put the children in each other's way and
-//!   in each other's views (2 m, 20 %, 5 children: mapping 4319 -> 3439 timesteps; the
-//!   README's planner changes list every cell).
+//!   same order across the direction of mapping (where each stays ahead of its start): the
+//!   spread puts the second goal far from the first, often across the stage from its start,
+//!   and paths that swap sides cross, putting the children in each other's way and views.
+//!   Pairing in order removes such crossings, though paths can still cross (a start far
+//!   behind another, obstacles). Measured effect: README, "Mapping with many children".
 //! * **Paths** are shortest 4-connected paths from start to goal through the parent's line
 //!   of sight LOS(v_p) (where the parent can track a child), never through `v_p`; through
 //!   any free vertex only if LOS(v_p) does not connect them.
@@ -18,13 +19,14 @@
 //!   grows the graph of the child whose walk (the way from where it stands to its start,
 //!   then its graph) is shortest among those that can grow, so that a child with a long way
 //!   to its start takes fewer vertices (a graph hemmed in by others' cannot grow, so the
-//!   walks need not end together). *Hilling* replaces an
-//!   edge `a -> b` by `a -> a' -> b' -> b` where `a'`, `b'` are uncovered child vertices
-//!   beside it; when no graph can hill, the shortest that can *branches out* to an uncovered
-//!   neighbour `c` of a vertex `u` of its walk (`u -> c -> u`), which later hilling widens.
-//!   Vertices no walk touches are reached by the shortest detour out and back from the
-//!   nearest walk vertex. (Until 2026-11 every graph hilled once per turn whatever its
-//!   length; 2 m, 20 %, 2 children: mapping 4080 -> 3882 timesteps.)
+//!   walks need not end together). The graph grown *hills* if it can: an edge `a -> b`
+//!   becomes `a -> a' -> b' -> b` where `a'`, `b'` are uncovered child vertices beside it;
+//!   otherwise it *branches out* to an uncovered neighbour `c` of a vertex `u` of its walk
+//!   (`u -> c -> u`), which later hilling widens. Vertices no walk touches are reached by
+//!   the shortest detour out and back from the nearest walk vertex. (Until 2026-11 every
+//!   graph that could hill did so once per turn, whatever its length, and a graph branched
+//!   out only when no graph could hill; measured effect: README, "Mapping with many
+//!   children".)
 //! * Children not given a start point (fewer starts than children) stay where they are.
 //! * A child's walk begins where it stands, goes to its start point, then follows its graph.
 
@@ -156,27 +158,23 @@ pub fn stage_roadmaps(
     while !routes.is_empty() && uncovered(&covered) {
         let mut order: Vec<usize> = (0..routes.len()).collect();
         order.sort_by_key(|&k| (approach[k] + routes[k].len(), k));
-        // Hilling by the shortest walk that can.
-        let hilled = order
-            .iter()
-            .find_map(|&k| hill(map, &routes[k], |v| open(v, &covered)).map(|h| (k, h)));
-        if let Some((k, (i, a2, b2))) = hilled {
-            routes[k].splice(i + 1..i + 1, [a2, b2]);
-            covered[a2] = true;
-            covered[b2] = true;
-            continue;
-        }
-        // Else branch out to a neighbour, by the shortest walk that can.
-        let branch = order.iter().find_map(|&k| {
+        // The shortest walk that can grow hills if it can, else branches out to a
+        // neighbour.
+        let grown = order.iter().find_map(|&k| {
+            if let Some((i, a2, b2)) = hill(map, &routes[k], |v| open(v, &covered)) {
+                return Some((k, i, vec![a2, b2]));
+            }
             routes[k].iter().enumerate().find_map(|(i, &u)| {
                 map.neighbours(u)
                     .find(|&c| open(c, &covered))
-                    .map(|c| (k, i, u, c))
+                    .map(|c| (k, i, vec![c, u]))
             })
         });
-        if let Some((k, i, u, c)) = branch {
-            routes[k].splice(i + 1..i + 1, [c, u]);
-            covered[c] = true;
+        if let Some((k, i, new)) = grown {
+            for &v in &new {
+                covered[v] = true;
+            }
+            routes[k].splice(i + 1..i + 1, new);
             continue;
         }
         // A detour out and back to the nearest uncovered child vertex.
@@ -235,15 +233,16 @@ pub fn stage_roadmaps(
     StageRoadmaps { walks, unreachable }
 }
 
-/// `goals` paired with `starts` in the same order across the direction of mapping, so that
-/// straight paths from the starts to their goals do not cross; `goals` as given if that
-/// would put a goal behind its start along the direction of mapping.
+/// `goals` (one per start) paired with `starts` in the same order across the direction of
+/// mapping, so that no two paths swap sides; `goals` as given if that would put a goal
+/// behind its start along the direction of mapping.
 fn pair_across(
     map: &Map,
     params: &CoverageParams,
     starts: &[Vertex],
     goals: Vec<Vertex>,
 ) -> Vec<Vertex> {
+    debug_assert_eq!(starts.len(), goals.len());
     let mut starts_across: Vec<usize> = (0..starts.len()).collect();
     starts_across.sort_by_key(|&k| (along(map, params, starts[k]).1, k));
     let mut goals_across = goals.clone();
@@ -311,11 +310,15 @@ mod tests {
 
     #[test]
     fn a_child_far_from_its_start_gets_less_of_the_stage() {
-        // Two children map an open 8 x 12 block east of the parent: one stands beside the
-        // block's west edge, the other 13 steps further west. Their graphs both have room to
-        // grow (one along the south edge, one up the west edge), and they grow in time, so
-        // the far child's graph is the smaller one. (Grown by the graphs' lengths alone,
-        // without the way to the start, the far child takes 9 of the 12 rows.)
+        // Two children map an open block (columns 15-21, rows 0-11) whose only western
+        // vertices are its two corners (14, 0) and (14, 11): those are the start points. The
+        // near child stands next to the southern start, the far one 13 steps west of the
+        // northern, whose graph is a single vertex at first and can only branch out. Each
+        // step grows the shortest walk (way to the start included) that can grow: the near
+        // graph grows first, then both, from the south and the north edges towards each
+        // other. (Until 2026-11 any graph that could hill did before any branched out, so
+        // the near child hilled over the whole block and the far child imaged only its start
+        // point: walks of 87 and 14 vertices.)
         let rows = vec![".".repeat(22); 12];
         let refs: Vec<&str> = rows.iter().map(String::as_str).collect();
         let map = Map::from_text(&refs, 0.5);
@@ -324,25 +327,38 @@ mod tests {
             ..CoverageParams::default()
         };
         let v = |c: i64, r: i64| map.at(c, r).unwrap();
-        let parent = v(13, 11);
-        let set: Vec<Vertex> = (14..22)
+        let parent = v(13, 6);
+        let mut set: Vec<Vertex> = (15..22)
             .flat_map(|c| (0..12).map(move |r| v(c, r)))
             .collect();
+        set.extend([v(14, 0), v(14, 11)]);
         let los = vec![true; map.len()];
-        let (near, far) = (v(13, 1), v(1, 0));
+        let (near, far) = (v(13, 0), v(1, 11));
         let r = stage_roadmaps(&map, &params, &los, parent, &[near, far], &set);
         assert!(r.unreachable.is_empty());
         let (near_walk, far_walk) = (&r.walks[0], &r.walks[1]);
+        assert_eq!(
+            (near_walk[1], far_walk[13]),
+            (v(14, 0), v(14, 11)),
+            "the starts"
+        );
         for &c in &set {
             assert!(near_walk.contains(&c) || far_walk.contains(&c), "{c}");
         }
         let in_set = |w: &Vec<Vertex>| w.iter().filter(|u| set.contains(u)).count();
+        // Alone, the near child would walk at least the whole block (|C| + 1 vertices with
+        // its step to the start). Shared, the stage takes at most three quarters of that,
+        // and the far child, for all its way to the start, images a quarter of the block.
+        let longest = near_walk.len().max(far_walk.len());
         assert!(
-            in_set(far_walk) < in_set(near_walk),
-            "the far child images {} vertices, the near one {}",
-            in_set(far_walk),
-            in_set(near_walk)
+            4 * longest <= 3 * (set.len() + 1),
+            "walks of {} and {} vertices for {} child vertices",
+            near_walk.len(),
+            far_walk.len(),
+            set.len()
         );
+        assert!(4 * in_set(far_walk) >= set.len(), "{}", in_set(far_walk));
+        assert!(in_set(far_walk) < in_set(near_walk));
     }
 
     #[test]
