@@ -21,12 +21,14 @@
 //!   to its start takes fewer vertices (a graph hemmed in by others' cannot grow, so the
 //!   walks need not end together). The graph grown *hills* if it can: an edge `a -> b`
 //!   becomes `a -> a' -> b' -> b` where `a'`, `b'` are uncovered child vertices beside it;
-//!   otherwise it *branches out* to an uncovered neighbour `c` of a vertex `u` of its walk
-//!   (`u -> c -> u`), which later hilling widens. Vertices no walk touches are reached by
-//!   the shortest detour out and back from the nearest walk vertex. (Until 2026-11 every
-//!   graph that could hill did so once per turn, whatever its length, and a graph branched
-//!   out only when no graph could hill; measured effect: README, "Mapping with many
-//!   children".)
+//!   otherwise it *branches out* to an uncovered neighbour `c` of a vertex `u` of its graph
+//!   (`u -> c -> u`), which later hilling widens. When no graph can grow, the first
+//!   uncovered child vertex (in the order C is given) is reached by the shortest detour out
+//!   and back from the nearest graph vertex, through LOS(v_p); one no detour reaches is
+//!   `unreachable`. (Before 2026-11-27 every graph that could hill did so once per turn,
+//!   whatever its length, and a graph branched out only when no graph could hill; in
+//!   commit d43f3dd the shortest graph that could hill did. Measured effects: README,
+//!   "Mapping with many children".)
 //! * Children not given a start point (fewer starts than children) stay where they are.
 //! * A child's walk begins where it stands, goes to its start point, then follows its graph.
 
@@ -177,7 +179,8 @@ pub fn stage_roadmaps(
             routes[k].splice(i + 1..i + 1, new);
             continue;
         }
-        // A detour out and back to the nearest uncovered child vertex.
+        // A detour out and back to the first uncovered child vertex, from the nearest
+        // graph vertex.
         let target = child_set
             .iter()
             .copied()
@@ -345,10 +348,17 @@ mod tests {
         for &c in &set {
             assert!(near_walk.contains(&c) || far_walk.contains(&c), "{c}");
         }
-        let in_set = |w: &Vec<Vertex>| w.iter().filter(|u| set.contains(u)).count();
+        let in_set = |w: &Vec<Vertex>| {
+            let mut seen: Vec<Vertex> = w.iter().copied().filter(|u| set.contains(u)).collect();
+            seen.sort_unstable();
+            seen.dedup();
+            seen.len()
+        };
         // Alone, the near child would walk at least the whole block (|C| + 1 vertices with
         // its step to the start). Shared, the stage takes at most three quarters of that,
-        // and the far child, for all its way to the start, images a quarter of the block.
+        // and the far child, for all its way to the start, images a quarter of the block
+        // (distinct vertices). These are margins, not the balance the rule aims at (walks
+        // of about 52 each): a graph hemmed in by the other's stops growing.
         let longest = near_walk.len().max(far_walk.len());
         assert!(
             4 * longest <= 3 * (set.len() + 1),
