@@ -147,14 +147,16 @@ pub fn stage_roadmaps(
     let open = |v: Vertex, covered: &Vec<bool>| in_set[v] && !covered[v] && v != parent;
     // Steps each child needs to get to its start point: the graphs grow "in parallel" in
     // time, so the child whose walk (approach and graph) is shortest grows first.
-    let approach: Vec<usize> = starts
+    // Each owned start's way from its child, found once: it orders the growth and begins
+    // the child's walk.
+    let mut approaches: Vec<Option<Vec<Vertex>>> = starts
         .iter()
         .enumerate()
-        .map(|(k, &s)| {
-            owner[k]
-                .and_then(|j| path(children[j], s))
-                .map_or(usize::MAX / 2, |p| p.len() - 1)
-        })
+        .map(|(k, &s)| owner[k].and_then(|j| path(children[j], s)))
+        .collect();
+    let approach: Vec<usize> = approaches
+        .iter()
+        .map(|p| p.as_ref().map_or(usize::MAX / 2, |p| p.len() - 1))
         .collect();
     let mut unreachable = Vec::new();
     while !routes.is_empty() && uncovered(&covered) {
@@ -213,11 +215,10 @@ pub fn stage_roadmaps(
     for (k, route) in routes.into_iter().enumerate() {
         // A child cut off from its start point (the parent stands in the way) gets no graph;
         // the vertices only that graph touched are left to the mop-up.
-        if let Some(j) = owner[k] {
-            if let Some(mut walk) = path(children[j], route[0]) {
-                walk.extend(route.into_iter().skip(1));
-                walks[j] = walk;
-            }
+        // (Growth inserts after a route's first vertex, so route[0] is still its start.)
+        if let (Some(j), Some(mut walk)) = (owner[k], approaches[k].take()) {
+            walk.extend(route.into_iter().skip(1));
+            walks[j] = walk;
         }
     }
     // Anything in C left untouched by every walk (no start could be placed) is unreachable.
