@@ -130,9 +130,10 @@ fn regression_passes_on_the_committed_baselines_and_catches_a_moved_metric() {
         false,
     )
     .unwrap();
-    // Five baseline metrics, and full coverage with 1 to 8 children (a requirement).
+    // Five baseline metrics, and full coverage and no skipped stage with 1 to 8 children
+    // (requirements).
     assert_eq!(rows.iter().filter(|r| !r.required).count(), 5);
-    assert_eq!(rows.iter().filter(|r| r.required).count(), 8);
+    assert_eq!(rows.iter().filter(|r| r.required).count(), 16);
     assert!(rows.iter().all(|r| !r.moved()), "{rows:?}");
 
     // A copy of the repository's inputs with a doctored baseline.
@@ -176,7 +177,7 @@ fn the_regress_command_exits_zero_on_the_committed_baselines() {
         String::from_utf8_lossy(&out.stderr)
     );
     assert!(
-        stdout.contains("regress: 39 metrics within tolerance"),
+        stdout.contains("regress: 63 metrics within tolerance"),
         "{stdout}"
     );
 }

@@ -45,7 +45,7 @@
 //!   pocket of children out, or steps aside to let one behind it. A vertex a stage still
 //!   cannot image with the parent on its parent vertex is imaged from another vertex that
 //!   sees it freely, in the stage or after the tour (`revisited`). A transition that fails
-//!   all the same skips its stage (`skipped_stages`; 5 on the Table I sweep, at 40 %), and what
+//!   all the same skips its stage (`skipped_stages`; none on the Table I-II sweeps), and what
 //!   nothing images is `unreached`, apart from `uncoverable` (vertices no vertex the parent
 //!   can reach sees freely).
 
@@ -99,8 +99,9 @@ pub struct Plan {
     /// because the team could not get there (none expected; see `skipped_stages`).
     pub unreached: Vec<Vertex>,
     /// Stages (indices into `parent_vertices`) skipped because the team could not be moved
-    /// there (rare: the moves of [`moves`] let robots by each other; the sweeps report every
-    /// skip, and the after-tour revisits image what a skipped stage would have).
+    /// there (none on the Table I-II sweeps, and `hetsim regress` requires none: the moves of
+    /// [`moves`] let robots by each other; the after-tour revisits image what a skipped
+    /// stage would have).
     pub skipped_stages: Vec<usize>,
     /// Vertices imaged after the tour, with the parent on a vertex (not necessarily a
     /// parent vertex) that has them in its LOS_free: those the stages left (a view the team

@@ -1,16 +1,19 @@
 //! Moving robots past each other on a grid where two robots never share or swap a vertex.
 //!
-//! The children are interchangeable for the mission (any child can image any vertex, and
-//! any child can stand in a following position), so a child in the way is never a reason
-//! to fail: the robots between a vertex and the nearest empty one shift one step each along
-//! the path between them (unlabelled pebble motion), which empties the vertex in as many
-//! single steps as there are robots on that path. The parent is the one robot that must
-//! itself get somewhere. It is blocked when the children ahead have no empty vertex to move
-//! to in the pocket beyond its next step (the part of the map its own vertex cuts off; a
-//! pocket a back-off already emptied is not refilled from outside): every vertex there holds
-//! a child. Then the parent yields: it backs off to the nearest vertex from which the
-//! pocket's children can leave past it, they leave, and it goes on. A child that must get behind the parent
-//! (to image a vertex the parent's vertex cuts off) is let through the same way.
+//! The children are interchangeable for the mission (any child can image any vertex, and any
+//! child can stand in a following position), so a child in the way is never a reason to fail:
+//! the robots between a vertex and the nearest empty one shift one step each along the path
+//! between them (unlabelled pebble motion), which empties the vertex in as many single steps as
+//! there are robots on that path. The parent is the one robot that must itself get somewhere.
+//! It is blocked when the children ahead have no empty vertex to move to in the pocket beyond
+//! its next step (the part of the map its own vertex cuts off; a pocket a back-off already
+//! emptied is not refilled from outside): every vertex there holds a child. Then the parent
+//! yields: it backs off to the nearest vertex from which the pocket's children can leave past
+//! it, they leave, and it goes on. Where the only room they would find is on the parent's own
+//! way back in (it backed off along a one-vertex-wide corridor), that back-off is undone and
+//! the parent stands where its way back leaves them enough empty vertices (a side vertex at the
+//! corridor's mouth). A child that must get behind the parent (to image a vertex the parent's
+//! vertex cuts off) is let through the same way.
 
 use super::*;
 
@@ -143,7 +146,17 @@ impl Run<'_> {
             return Err(stuck);
         }
         self.backing_off += 1;
-        let result = self.back_off_from(here, next, phase, keep, stuck);
+        let saved = (self.pos.clone(), self.frames.len(), self.robot_steps);
+        let mut result = self.back_off_from(here, next, phase, keep, stuck.clone(), false);
+        if result.is_err() {
+            // The quick stand left the children no way out (they would have to park on the
+            // parent's own way back in, as at the mouth of a one-vertex-wide dead end):
+            // undo, and stand where that way back leaves them enough room.
+            self.pos = saved.0;
+            self.frames.truncate(saved.1);
+            self.robot_steps = saved.2;
+            result = self.back_off_from(here, next, phase, keep, stuck, true);
+        }
         self.backing_off -= 1;
         result
     }
@@ -155,6 +168,7 @@ impl Run<'_> {
         phase: Phase,
         keep: &dyn Fn(Vertex) -> bool,
         stuck: PlanError,
+        strict: bool,
     ) -> Result<Vec<Vertex>, PlanError> {
         let reach = self.map.distances(next, |u| u != here && !keep(u));
         let pocket: Vec<Vertex> = (0..self.map.len())
@@ -174,24 +188,42 @@ impl Run<'_> {
             .filter(|&u| from_here[u] != usize::MAX && u != here)
             .collect();
         stands.sort_by_key(|&u| (from_here[u], u));
+        // The parent's way from a stand back to `here` (strict: the children may not park
+        // on it).
+        let way_back = |w: Vertex| -> Vec<bool> {
+            let mut on = vec![false; self.map.len()];
+            if strict {
+                let back = self
+                    .map
+                    .path_to(w, |u| u == here, |u| !in_pocket[u] && !keep(u));
+                for u in back.into_iter().flatten() {
+                    on[u] = true;
+                }
+            }
+            on
+        };
         let stand = stands
             .into_iter()
             .find(|&w| {
                 // Empty vertices outside the pocket the children can reach past `w`.
                 let out = self.map.distances(here, |u| u != w && !keep(u));
+                let back = way_back(w);
                 let holes = (0..self.map.len())
                     .filter(|&u| {
                         out[u] != usize::MAX
                             && !in_pocket[u]
                             && u != w
                             && u != here
+                            && !back[u]
                             && !self.occupied_by_other(usize::MAX, u)
                     })
                     .count();
-                // `here` itself becomes free too once the parent stands on `w`.
-                holes + 1 >= leaving
+                // Quick rule: `here` itself becomes free too once the parent stands on `w`
+                // (though the children then leave by it, not onto it).
+                holes + usize::from(!strict) >= leaving
             })
             .ok_or(stuck.clone())?;
+        let back = way_back(stand);
         // Back off without entering the pocket.
         let keep_out = |u: Vertex| keep(u) || in_pocket[u];
         self.drive_parent(stand, phase, &keep_out)?;
@@ -213,6 +245,7 @@ impl Run<'_> {
                     !in_pocket[u]
                         && u != stand
                         && u != here
+                        && !back[u]
                         && !self.occupied_by_other(usize::MAX, u)
                 },
                 |u| u != stand && !keep(u),
@@ -468,6 +501,28 @@ pub(super) mod tests {
             .unwrap();
         assert_eq!(run.pos[0], end);
         assert_legal(&map, &start, &run.frames);
+    }
+
+    #[test]
+    fn the_parent_steps_into_a_side_vertex_to_let_a_dead_ends_child_out() {
+        // The parent must stand on the tip of a one-vertex-wide dead end that holds a
+        // child. The nearest vertex to back off to is on the corridor itself: the child
+        // could only leave onto the parent's own way back in. The parent must step into the
+        // side vertex north or south of the corridor's mouth instead, and let the child by.
+        let rows = ["###.####", "#k.P....", "###.####"];
+        let map = Map::from_text(&rows, 0.5);
+        let params = CoverageParams::default();
+        let vis = Visibility::compute(&map, &params);
+        let mut run = run_on(&map, &params, &vis, &rows);
+        let start = run.pos.clone();
+        let tip = map.at(1, 1).unwrap();
+        run.drive_parent(tip, Phase::Coordination, &|_| false)
+            .unwrap();
+        assert_eq!(run.pos[0], tip);
+        assert_legal(&map, &start, &run.frames);
+        // Getting out costs at least: parent to the mouth (1) and into a side vertex (2),
+        // the child out past it (3), then the parent back to the tip (3).
+        assert!(run.frames.len() >= 9, "{} steps", run.frames.len());
     }
 
     #[test]
