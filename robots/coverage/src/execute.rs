@@ -168,6 +168,13 @@ pub enum PlanError {
     },
 }
 
+/// A point of a [`Run`] to go back to ([`Run::snapshot`]).
+struct Snapshot {
+    pos: Vec<Vertex>,
+    frames: usize,
+    robot_steps: usize,
+}
+
 struct Run<'a> {
     map: &'a Map,
     params: &'a CoverageParams,
@@ -203,6 +210,22 @@ impl Run<'_> {
             .iter()
             .enumerate()
             .any(|(k, &u)| k != robot && in_view(self.map, self.params, at, u, self.radius(k)))
+    }
+
+    /// Where the robots stand and how far the schedule got, to undo moves that led nowhere.
+    fn snapshot(&self) -> Snapshot {
+        Snapshot {
+            pos: self.pos.clone(),
+            frames: self.frames.len(),
+            robot_steps: self.robot_steps,
+        }
+    }
+
+    /// Undoes every move made since `saved` was taken.
+    fn restore(&mut self, saved: Snapshot) {
+        self.pos = saved.pos;
+        self.frames.truncate(saved.frames);
+        self.robot_steps = saved.robot_steps;
     }
 
     fn push(&mut self, phase: Phase, grabs: Vec<(usize, Vertex)>) {

@@ -215,12 +215,10 @@ impl Run<'_> {
                 los_from[v] = true;
             }
             let order = self.nearest_first(|v| in_h[v]);
-            let saved = (self.pos.clone(), self.frames.len(), self.robot_steps);
+            let saved = self.snapshot();
             if !self.gather(&order, &|v| in_h[v], &|v| los_from[v] || in_h[v]) {
                 // Undo and fall back to following.
-                self.pos = saved.0;
-                self.frames.truncate(saved.1);
-                self.robot_steps = saved.2;
+                self.restore(saved);
                 following = true;
             }
         }
