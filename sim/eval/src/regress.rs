@@ -6,7 +6,7 @@
 //! generator changed; the tolerances say how much change is still acceptable without a
 //! deliberate `--update`.
 //!
-//! Beside the baselines, every map is planned with 1 to [`FULL_COVERAGE_CHILDREN`] children
+//! Beside the baselines, every map is planned with 1 to [`REQUIRED_CHILDREN`] children
 //! and each plan must image every vertex some vertex sees freely (Eq. 4 of seed 002 where its
 //! assumption holds) and skip no stage: those are requirements, not baselines, and `--update`
 //! does not lift them.
@@ -26,9 +26,9 @@ pub const DEFAULT_SCENARIOS: [&str; 3] = [
     "scenarios/indoor-grid-40.toml",
 ];
 
-/// Full coverage is required of every plan with 1 to this many children (Tables I-II's
-/// range).
-pub const FULL_COVERAGE_CHILDREN: usize = 8;
+/// Full coverage and every stage are required of every plan with 1 to this many children
+/// (Tables I-II's range).
+pub const REQUIRED_CHILDREN: usize = 8;
 
 /// Allowed movement of one metric.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -94,7 +94,8 @@ pub struct Comparison {
     pub now: f64,
     /// Allowed absolute movement.
     pub allowed: f64,
-    /// A requirement (full coverage), not a baseline: `--update` does not rewrite it.
+    /// A requirement (full coverage, or no skipped stage), not a baseline: `--update` does
+    /// not rewrite it.
     pub required: bool,
 }
 
@@ -145,7 +146,7 @@ pub fn regress(
         )?;
         let (_, _, plan) = plan_scenario(&loaded)?;
         let now = metrics_map(&CoverageMetrics::of(&plan));
-        let full = full_coverage(scenario, &loaded)?;
+        let full = requirements(scenario, &loaded)?;
         if update && full.iter().any(Comparison::moved) {
             // A baseline is not rewritten from a planner that fails the requirement.
             out.extend(full);
@@ -201,12 +202,12 @@ pub fn regress(
 /// Two rows per number of children: the plan's coverage of the vertices some vertex sees
 /// freely, which must be 1, and its skipped stages, which must be none (the robots get past
 /// each other to every parent vertex).
-fn full_coverage(
+fn requirements(
     scenario: &str,
     loaded: &hetsim_scene::Scenario,
 ) -> Result<Vec<Comparison>, EvalError> {
     let mut rows = Vec::new();
-    for n in 1..=FULL_COVERAGE_CHILDREN {
+    for n in 1..=REQUIRED_CHILDREN {
         let (_, _, plan) = plan_scenario_with(loaded, Some(n))?;
         rows.push(Comparison {
             scenario: scenario.to_string(),

@@ -125,10 +125,18 @@ impl Run<'_> {
         Ok(())
     }
 
-    /// The pocket beyond `next` (the vertices reachable from `next` without passing the
-    /// parent or a kept vertex) holds no empty vertex. The parent backs off to the nearest
-    /// vertex outside it from which the pocket's children can reach enough empty vertices,
-    /// and they leave. Returns the pocket.
+    /// Empties the pocket beyond `next` (the vertices reachable from `next` without passing
+    /// the parent or a kept vertex; [`Self::drive_parent`] calls this when it holds no empty
+    /// vertex): the parent backs off to a stand outside it, and the pocket's children leave
+    /// past it. Returns the pocket.
+    ///
+    /// First the quick rule of [`Self::back_off_from`]: the nearest stand past which the
+    /// children can reach as many empty vertices as there are children, counting the
+    /// parent's present vertex as one although they leave by it, not onto it. So it can pick
+    /// a stand one vertex short (the mouth of a one-vertex-wide dead end: the child could
+    /// only stop on the corridor the parent must come back by). Where the children cannot get
+    /// out, that attempt is undone and the strict rule stands the parent where the empty
+    /// vertices, not counting its own way back, are enough.
     fn back_off(
         &mut self,
         next: Vertex,
@@ -149,9 +157,7 @@ impl Run<'_> {
         let saved = self.snapshot();
         let mut result = self.back_off_from(here, next, phase, keep, stuck.clone(), false);
         if result.is_err() {
-            // The quick stand left the children no way out (they would have to park on the
-            // parent's own way back in, as at the mouth of a one-vertex-wide dead end):
-            // undo, and stand where that way back leaves them enough room.
+            // The quick stand left the children no way out: undo, and use the strict rule.
             self.restore(saved);
             result = self.back_off_from(here, next, phase, keep, stuck, true);
         }
@@ -186,6 +192,11 @@ impl Run<'_> {
             .filter(|&u| from_here[u] != usize::MAX && u != here)
             .collect();
         stands.sort_by_key(|&u| (from_here[u], u));
+        if strict {
+            // Each candidate costs two breadth-first searches; a stand further than this
+            // many vertices away is no longer a back-off.
+            stands.truncate(256);
+        }
         // The parent's way from a stand back to `here` (strict: the children may not park
         // on it).
         let way_back = |w: Vertex| -> Vec<bool> {
@@ -279,7 +290,8 @@ impl Run<'_> {
     /// vertices satisfying `within`, and returns it; `None` if no child can get there. A
     /// child cut off by the parent's vertex is let through: the parent steps aside and
     /// comes back (while mapping it must stand on its parent vertex again to track the
-    /// child).
+    /// child). Where no stand lets a child through and the parent back without crossing the
+    /// goal, the last resort is [`Self::let_out_behind`].
     pub(super) fn bring_child(
         &mut self,
         phase: Phase,
@@ -331,14 +343,14 @@ impl Run<'_> {
         Ok(None)
     }
 
-    /// The last resort of [`Self::bring_child`] with the parent on its vertex `home`: the
-    /// children are all in pockets behind it (beyond a neighbour of `home` that only `home`
-    /// leads to), and no stand lets one through and the parent back without crossing the
-    /// goal (the goal is on the parent's only way back, as in a one-vertex-wide corridor
-    /// with the child in its dead end). A pocket's children come out as for a pocket in the
-    /// parent's way ([`Self::back_off`]), to vertices off the parent's way back; the parent
-    /// drives back and the nearest child walks to the goal. Undone where it does not get a
-    /// child there.
+    /// The last resort of [`Self::bring_child`], with the parent on its vertex `home`, for a
+    /// child in a pocket behind it (beyond a neighbour of `home` that only `home` leads to,
+    /// the goal outside it) when the goal lies on the parent's only way back from any stand
+    /// that would let the child through (a one-vertex-wide corridor with the child in its
+    /// dead end). For each such pocket in turn: all its children come out as from a pocket
+    /// in the parent's way ([`Self::back_off`]), the parent drives back to `home`, and the
+    /// nearest child walks to the goal. Undone, and the next pocket tried, where that does
+    /// not get a child there.
     fn let_out_behind(
         &mut self,
         phase: Phase,
