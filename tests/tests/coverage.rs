@@ -111,19 +111,23 @@ fn invariants_hold_on_hundreds_of_random_maps() {
 /// vertex, and Eq. 4 every vertex some vertex sees freely.
 #[test]
 fn no_stage_is_skipped_on_table_one_s_most_obstructed_maps() {
-    let tmp = tempfile::tempdir().unwrap();
-    let path = tmp.path().join("crowded.toml");
-    std::fs::write(
-        &path,
-        format!(
-            "schema_version = 1\nname = \"crowded\"\nbase = \"{}\"\nseeds = 10\nfirst_seed = 1\n\n[axes]\n\"world.indoor.obstruction_ratio\" = [0.4]\n\"coverage.children\" = [2, 3]\n",
-            repo().join("scenarios/indoor-grid-20.toml").display()
-        ),
-    )
-    .unwrap();
-    let sweep = load_sweep(&path).unwrap();
-    assert_eq!(sweep.runs.len(), 20);
-    for run in &sweep.runs {
+    // The committed sweep itself, its cells at 40 % with 2 and 3 children.
+    let sweep = load_sweep(&repo().join("scenarios/sweeps/table1.toml")).unwrap();
+    let axis = |name: &str| sweep.file.axes.keys().position(|k| k == name).unwrap();
+    let (ratio, children) = (
+        axis("world.indoor.obstruction_ratio"),
+        axis("coverage.children"),
+    );
+    let crowded: Vec<_> = sweep
+        .runs
+        .iter()
+        .filter(|run| {
+            run.values[ratio].as_float() == Some(0.4)
+                && matches!(run.values[children].as_integer(), Some(2 | 3))
+        })
+        .collect();
+    assert_eq!(crowded.len(), 20);
+    for run in crowded {
         let scenario = sweep.scenario(run).unwrap();
         let (_, params, plan) = plan_scenario(&scenario).unwrap();
         let what = format!("seed {}, {} children", run.seed, params.children);
