@@ -163,6 +163,16 @@ fn anisotropy(info: &wgpu::AdapterInfo, options: &RenderOptions) -> u16 {
         .clamp(1, 16)
 }
 
+/// wgpu's defaults without the validation of indirect draws and dispatches: the renderer
+/// issues none, and that validation builds compute pipelines when the device is made, which
+/// NVIDIA's OpenGL driver refuses ("Parent device is lost": on an H200, driver 580, every
+/// GL device failed with it and the bare-wgpu reference, which clears all flags, did not).
+/// `WGPU_VALIDATION_INDIRECT_CALL=1` and wgpu's other variables still apply.
+fn instance_flags() -> wgpu::InstanceFlags {
+    (wgpu::InstanceFlags::from_build_config() - wgpu::InstanceFlags::VALIDATION_INDIRECT_CALL)
+        .with_env()
+}
+
 fn pick_adapter(options: &RenderOptions) -> Result<wgpu::Adapter, RenderError> {
     let backend = options
         .backend
@@ -181,6 +191,7 @@ fn pick_adapter(options: &RenderOptions) -> Result<wgpu::Adapter, RenderError> {
     };
     let instance = wgpu::Instance::new(wgpu::InstanceDescriptor {
         backends,
+        flags: instance_flags(),
         ..wgpu::InstanceDescriptor::new_without_display_handle()
     });
     let adapters = pollster::block_on(instance.enumerate_adapters(backends));
