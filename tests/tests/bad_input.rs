@@ -487,6 +487,20 @@ fn localization_run_too_long() {
 }
 
 #[test]
+fn view_margin_beyond_a_cell() {
+    let text = format!("{SCENARIO}\n[coverage]\nview_margin_m = 2.0\n");
+    let (_, e, _d) = load(&text, None);
+    assert_names(
+        &e,
+        "broken.toml",
+        line_of(&text, "view_margin_m"),
+        "coverage.view_margin_m",
+        "2",
+        "a number in [0, 0.5]",
+    );
+}
+
+#[test]
 fn paper_view_rule_in_a_mission_the_simulator_runs() {
     // "start_points" checks no grab: a mission whose images are rendered must not use it.
     let text = parent_scenario() + "\n[coverage]\nviews = \"start_points\"\n";

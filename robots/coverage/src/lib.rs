@@ -102,6 +102,10 @@ pub struct CoverageParams {
     /// Extra angle on each side of a child's view when checking that no robot is in an
     /// image, degrees (0 in the seed).
     pub view_margin_deg: f64,
+    /// Extra distance around a robot's footprint when checking that it is not in an image,
+    /// metres (0 in the seed: robots stand on their vertices).
+    #[serde(default)]
+    pub view_margin_m: f64,
     /// Radius of the parent's footprint, metres.
     pub parent_radius_m: f64,
     /// Radius of a child's footprint, metres (0.06 for a c't-Bot).
@@ -122,6 +126,7 @@ impl Default for CoverageParams {
             direction: Direction::East,
             child_fov_deg: 80.0,
             view_margin_deg: 0.0,
+            view_margin_m: 0.0,
             parent_radius_m: 0.225,
             child_radius_m: 0.06,
             children: 3,

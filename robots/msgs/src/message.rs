@@ -104,6 +104,9 @@ pub struct CoverageMission {
     pub child_fov_deg: f64,
     /// Extra angle on each side of a child's view when keeping robots out of images, degrees.
     pub view_margin_deg: f64,
+    /// Extra distance around a robot's footprint when keeping robots out of images, metres.
+    #[serde(default)]
+    pub view_margin_m: f64,
     /// Radius of the parent's footprint, metres.
     pub parent_radius_m: f64,
     /// Radius of a child's footprint, metres.

@@ -18,6 +18,10 @@ pub struct CoverageSpec {
     /// image, degrees (0 in the seed's model; covers the children's heading error when the
     /// mission runs in the simulator).
     pub view_margin_deg: f64,
+    /// Extra distance around a robot's footprint when checking that it is not in an image,
+    /// metres (0 in the seed's model; covers how far a robot stands off its vertex, by the
+    /// drive's and the tracker's errors, when the mission runs in the simulator).
+    pub view_margin_m: f64,
     /// Number of children N; `None` counts the scenario's c't-Bots.
     pub children: Option<usize>,
     /// Candidate distance f as a multiple of r_los (Eq. 6).
@@ -39,6 +43,7 @@ impl Default for CoverageSpec {
             direction: "east".to_string(),
             child_fov_deg: 80.0,
             view_margin_deg: 0.0,
+            view_margin_m: 0.0,
             children: None,
             f_factor: 2.0,
             views: "every_grab".to_string(),

@@ -400,6 +400,7 @@ impl ScenarioFile {
             c.range(&at("r_los_m"), cov.r_los_m, 0.1, 100.0)?;
             c.range(&at("child_fov_deg"), cov.child_fov_deg, 1.0, 179.0)?;
             c.range(&at("view_margin_deg"), cov.view_margin_deg, 0.0, 45.0)?;
+            c.range(&at("view_margin_m"), cov.view_margin_m, 0.0, 0.5)?;
             c.range(&at("f_factor"), cov.f_factor, 0.5, 10.0)?;
             if !["east", "north", "west", "south"].contains(&cov.direction.as_str()) {
                 return Err(c.error_at(

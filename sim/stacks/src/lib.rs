@@ -380,6 +380,7 @@ fn mission(scenario: &Scenario, spec: &MissionSpec) -> Mission {
                     direction: format!("{:?}", params.direction).to_lowercase(),
                     child_fov_deg: params.child_fov_deg,
                     view_margin_deg: params.view_margin_deg,
+                    view_margin_m: params.view_margin_m,
                     parent_radius_m: params.parent_radius_m,
                     child_radius_m: params.child_radius_m,
                     f_factor: params.f_factor,
@@ -458,6 +459,7 @@ pub fn coverage_params(scenario: &Scenario) -> CoverageParams {
         direction,
         child_fov_deg: spec.child_fov_deg,
         view_margin_deg: spec.view_margin_deg,
+        view_margin_m: spec.view_margin_m,
         parent_radius_m: radius("parent", 0.225),
         child_radius_m: radius("ctbot", 0.06),
         children: spec

@@ -29,6 +29,7 @@ fn mapped_parent() -> ParentStack {
         direction: "east".into(),
         child_fov_deg: 80.0,
         view_margin_deg: 0.0,
+        view_margin_m: 0.0,
         parent_radius_m: 0.2,
         child_radius_m: 0.06,
         f_factor: 2.0,
