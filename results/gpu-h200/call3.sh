@@ -1,7 +1,6 @@
 #!/bin/bash
-# Device check 2: the GL fix (instance kept alive), both backends' render bench back to back
-# with the reference, and digests: lab on Vulkan with 2 threads (vs 93e14f52 with 16), lab on
-# GL, indoor-team on Vulkan.
+# Device check 3: the GL fix (indirect-call validation off, de5bf37): the render bench on
+# Vulkan, GL and Vulkan with anisotropy 1, then the reference once, then the lab on GL.
 set -u
 for f in .gl/*.deb; do dpkg -x $f / ; done; ldconfig
 I=/usr/local/nvidia/share/vulkan/icd.d/nvidia_icd.json; [ -f $I ] && export VK_DRIVER_FILES=$I
