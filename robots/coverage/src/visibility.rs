@@ -10,12 +10,12 @@
 //!   symmetric (Bresenham's line is not).
 //! * **LOS radius.** `w ∈ LOS(v)` needs the centre distance `<= r_los`.
 //! * **View cone.** A child grabbing at `w` looks along the direction of mapping with an
-//!   opening angle `fov`. A robot at `u`, of half-side `ρ`, is in view when one of three
-//!   points of it is in sight of `w`'s centre (no occupied cell's inside crossed,
+//!   opening angle `fov`. A robot at `u`, of half-side `ρ`, is in view when a point of it
+//!   is in sight of `w`'s centre (no occupied cell's inside crossed,
 //!   [`line_of_sight_open`] and [`segment_open`]: grazing a corner does not hide it, as it
-//!   does not in the rendered image): `u`'s centre, or either end of the diameter across
-//!   the sight line of the disc that holds its footprint (half-diagonal `√2 ρ`, plus
-//!   `view_margin_m`); and the disc of radius `ρ` overlaps the cone:
+//!   does not in the rendered image): `u`'s centre, or a point of the diameter across the
+//!   sight line of the disc that holds its footprint (half-diagonal `√2 ρ`, plus
+//!   `view_margin_m`), sampled every 1/16 cell; and the disc of radius `ρ` overlaps the cone:
 //!   `angle(u - w, direction) <= fov / 2 + asin(ρ / |u - w|)`, at any distance: a robot the
 //!   camera can see is in the image however far it is (a 1.5 m parent is visible across a
 //!   room), which is how the simulator counts robots in the rendered images. (Until
@@ -93,9 +93,12 @@ fn sight(map: &Map, a: Vertex, b: Vertex, closed: bool) -> bool {
 /// For sight it is taken as the disc around `u`'s centre that holds its footprint however
 /// it is turned, radius `radius_m` times sqrt 2 (a square's half-diagonal; more than a
 /// narrower rectangle's), grown by `params.view_margin_m` for how far it may stand off its
-/// vertex: one of three points must be in sight, its centre or either end of the disc's
-/// diameter across the sight line (a sample: a large robot whose ends fall in an obstacle
-/// may show in between). Testing the centre alone missed a robot whose centre is hidden behind an
+/// vertex: its centre or a point of the disc's diameter across the sight line must be in
+/// sight, the diameter sampled at both ends and every 1/16 cell between (3 cm at
+/// d = 0.5 m; a gap the camera sees as narrower than that may be missed). Until 2026-11-27
+/// only the centre and the two ends were tested, which misses a robot whose ends are
+/// hidden (behind obstacles, or past the map's edge for the disc's margin) while a part in
+/// between shows. Testing the centre alone missed a robot whose centre is hidden behind an
 /// obstacle's corner while its edge shows (indoor-team, seed 1: a c't-Bot 31 degrees off
 /// the optical axis, 1.6 and 2.5 m away, in two grabbed images).
 ///
@@ -123,8 +126,13 @@ pub fn in_view(map: &Map, params: &CoverageParams, w: Vertex, u: Vertex, radius_
 /// d = 0.5 m).
 const FINE: i64 = 1000;
 
-/// Whether either end of the diameter, across the sight line, of a disc of radius `disc_m`
-/// around `u`'s centre is in sight of `w`'s centre ([`segment_open`]).
+/// Points per cell at which [`edge_in_sight`] samples the diameter.
+const ALONG: f64 = 16.0;
+
+/// Whether some point of the diameter, across the sight line, of a disc of radius `disc_m`
+/// around `u`'s centre is in sight of `w`'s centre ([`segment_open`]): its two ends, then
+/// points every `1 / ALONG` cell or less towards the centre (which is
+/// [`line_of_sight_open`]'s).
 fn edge_in_sight(map: &Map, w: Vertex, u: Vertex, disc_m: f64) -> bool {
     let ((wc, wr), (uc, ur)) = (map.cell(w), map.cell(u));
     let (vx, vy) = (uc as f64 - wc as f64, ur as f64 - wr as f64);
@@ -134,9 +142,11 @@ fn edge_in_sight(map: &Map, w: Vertex, u: Vertex, disc_m: f64) -> bool {
     let fine =
         |cell: usize, off: f64| cell as i64 * FINE + FINE / 2 + (off * FINE as f64).round() as i64;
     let from = (fine(wc, 0.0), fine(wr, 0.0));
-    [1.0, -1.0]
-        .iter()
-        .any(|&s| segment_open(map, from, (fine(uc, s * px), fine(ur, s * py)), FINE))
+    let steps = (rho * ALONG).ceil().max(1.0) as usize;
+    (0..steps)
+        .map(|k| 1.0 - k as f64 / steps as f64)
+        .flat_map(|f| [f, -f])
+        .any(|f| segment_open(map, from, (fine(uc, f * px), fine(ur, f * py)), FINE))
 }
 
 /// Whether the segment between two points crosses the inside of no occupied cell (nor of any
@@ -300,6 +310,39 @@ mod tests {
         // Without the margin the disc's edge, 0.17 cell off the centre line, is hidden too:
         // the line to it reaches y = 1.02 at x = 3, inside (2, 1).
         assert!(!in_view(&m, &params(), w, u, 0.06));
+    }
+
+    #[test]
+    fn a_robot_whose_ends_are_hidden_but_whose_middle_shows_is_in_view() {
+        // Cells of 0.5 m, coordinates in cells, north row first: obstacles (0, 2), (1, 2)
+        // and (2, 1). The camera at (0, 1)'s centre (0.5, 1.5) looks east at a parent
+        // (0.17 m half-side, 0.04 m margin: a disc of 0.28 m, 0.561 cell) on (4, 0), centre
+        // (4.5, 0.5), 14 degrees off the axis. The line between the centres,
+        // y = 1.5 - (x - 0.5) / 4, is in row 1 for x in (2, 2.5): hidden by (2, 1). The
+        // diameter across it runs along (1, 4) / sqrt 17: its northern end (4.64, 1.04)
+        // is hidden by (2, 1) too (y = 1.34 at x = 2), its southern end (4.36, -0.04) lies
+        // past the map's southern edge, which hides like an obstacle. Between them, 0.8 of
+        // the radius south, (4.39, 0.07): the line to it drops into row 0 at x = 1.86,
+        // before (2, 1), and stays in the free row 0. So part of the parent shows.
+        let m = Map::from_text(&["##.....", "..#....", "......."], 0.5);
+        let v = |c, r| m.at(c, r).unwrap();
+        let (w, u) = (v(0, 1), v(4, 0));
+        let p = CoverageParams {
+            view_margin_m: 0.04,
+            ..params()
+        };
+        let disc = 0.17 * std::f64::consts::SQRT_2 + 0.04;
+        assert!(!line_of_sight_open(&m, w, u), "the centre is hidden");
+        let rho = disc / m.cell_m;
+        let len = 17f64.sqrt();
+        let at = |f: f64| {
+            let (x, y) = (4.5 + f * rho / len, 0.5 + f * 4.0 * rho / len);
+            let fine = |z: f64| (z * FINE as f64).round() as i64;
+            segment_open(&m, (FINE / 2, 3 * FINE / 2), (fine(x), fine(y)), FINE)
+        };
+        assert!(!at(1.0) && !at(-1.0), "both ends are hidden");
+        assert!(at(-0.8), "a point between shows");
+        assert!(in_view(&m, &p, w, u, 0.17));
     }
 
     #[test]
