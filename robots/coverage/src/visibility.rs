@@ -15,7 +15,7 @@
 //!   [`line_of_sight_open`] and [`segment_open`]: grazing a corner does not hide it, as it
 //!   does not in the rendered image): `u`'s centre, or a point of the diameter across the
 //!   sight line of the disc that holds its footprint (half-diagonal `√2 ρ`, plus
-//!   `view_margin_m`), sampled every 1/16 cell; and the disc of radius `ρ` overlaps the cone:
+//!   `view_margin_m`), sampled every 1/16 cell or less; and the disc of radius `ρ` overlaps the cone:
 //!   `angle(u - w, direction) <= fov / 2 + asin(ρ / |u - w|)`, at any distance: a robot the
 //!   camera can see is in the image however far it is (a 1.5 m parent is visible across a
 //!   room), which is how the simulator counts robots in the rendered images. (Until
@@ -95,8 +95,8 @@ fn sight(map: &Map, a: Vertex, b: Vertex, closed: bool) -> bool {
 /// narrower rectangle's), grown by `params.view_margin_m` for how far it may stand off its
 /// vertex: its centre or a point of the disc's diameter across the sight line must be in
 /// sight, the diameter sampled at both ends and every 1/16 cell between (3 cm at
-/// d = 0.5 m; a gap the camera sees as narrower than that may be missed). Until 2026-11-27
-/// only the centre and the two ends were tested, which misses a robot whose ends are
+/// d = 0.5 m; a gap the camera sees as narrower than that may be missed). Earlier on
+/// 2026-11-27 only the centre and the two ends were tested, which misses a robot whose ends are
 /// hidden (behind obstacles, or past the map's edge for the disc's margin) while a part in
 /// between shows. Testing the centre alone missed a robot whose centre is hidden behind an
 /// obstacle's corner while its edge shows (indoor-team, seed 1: a c't-Bot 31 degrees off
@@ -320,9 +320,9 @@ mod tests {
         // (4.5, 0.5), 14 degrees off the axis. The line between the centres,
         // y = 1.5 - (x - 0.5) / 4, is in row 1 for x in (2, 2.5): hidden by (2, 1). The
         // diameter across it runs along (1, 4) / sqrt 17: its northern end (4.64, 1.04)
-        // is hidden by (2, 1) too (y = 1.34 at x = 2), its southern end (4.36, -0.04) lies
+        // is hidden by (2, 1) too (y = 1.33 at x = 2), its southern end (4.36, -0.04) lies
         // past the map's southern edge, which hides like an obstacle. Between them, 0.8 of
-        // the radius south, (4.39, 0.07): the line to it drops into row 0 at x = 1.86,
+        // the radius south, (4.39, 0.06): the line to it drops into row 0 at x = 1.86,
         // before (2, 1), and stays in the free row 0. So part of the parent shows.
         let m = Map::from_text(&["##.....", "..#....", "......."], 0.5);
         let v = |c, r| m.at(c, r).unwrap();
