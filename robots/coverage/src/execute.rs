@@ -26,8 +26,9 @@
 //!   "Mapping with many children".) A stage runs in rounds: what a round could not
 //!   image gets new roadmaps from where the children stand, while a round images anything;
 //!   the rest is mopped up one vertex at a time (the nearest child goes there, robots in its
-//!   view step out of it, it grabs). Under [`ViewRule::StartPoints`] (a relaxation, for comparison with the paper)
-//!   only the stages' starting points are kept out of each other's views.
+//!   view step out of it, it grabs). Under [`ViewRule::StartPoints`] (a relaxation, for
+//!   comparison with the paper) only the stages' starting points are kept out of each
+//!   other's views.
 //! * **C(t)** is LOS_free(v_p^t) minus V_p minus what is already imaged, so a vertex a stage
 //!   could not image is tried again by later stages; what no stage images is reported.
 //! * **Transitions (Eq. 8).** H = LOS(v_p^t) ∩ LOS(v_p^(t+1)) without the two parent
@@ -241,7 +242,8 @@ impl Run<'_> {
     /// satisfying `goal`, one frame per step. When other children block every such path,
     /// the path is planned through them and each blocking child is first pushed off it to
     /// the nearest vertex that is not on it (recursively, at most one level per robot). While
-    /// coordinating, the parent may be pushed aside too; while mapping, never. Returns where the robot ended.
+    /// coordinating, the parent may be pushed aside too; while mapping, never. Returns where
+    /// the robot ended.
     fn walk_alone(
         &mut self,
         robot: usize,

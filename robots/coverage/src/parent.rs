@@ -21,9 +21,9 @@
 //!   the robots that move in a timestep are driven to their next vertex together; when all
 //!   have arrived, the timestep's grabs are ordered; when all images are in, the next
 //!   timestep starts. A robot moving onto a vertex that another robot leaves in the same
-//!   timestep starts when that robot has arrived. The plan keeps robots on distinct vertices and out of each other's
-//!   views at grab time, so this execution inherits its collision and view guarantees up to
-//!   the children's position errors.
+//!   timestep starts when that robot has arrived. The plan keeps robots on distinct
+//!   vertices and out of each other's views at grab time, so this execution inherits its
+//!   collision and view guarantees up to the children's position errors.
 //! * **Teleoperation** (Section V.B). To send a child to a vertex, the parent takes the
 //!   child's tracked position, orders a drive towards the goal (the child rotates by
 //!   compass, then drives straight for the distance by its encoders), re-aims it once when it

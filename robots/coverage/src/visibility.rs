@@ -15,7 +15,8 @@
 //!   [`line_of_sight_open`] and [`segment_open`]: grazing a corner does not hide it, as it
 //!   does not in the rendered image): `u`'s centre, or a point of the diameter across the
 //!   sight line of the disc that holds its footprint (half-diagonal `√2 ρ`, plus
-//!   `view_margin_m`), sampled every 1/16 cell or less; and the disc of radius `ρ` overlaps the cone:
+//!   `view_margin_m`), sampled every 1/16 cell or less; and the disc of radius `ρ`
+//!   overlaps the cone:
 //!   `angle(u - w, direction) <= fov / 2 + asin(ρ / |u - w|)`, at any distance: a robot the
 //!   camera can see is in the image however far it is (a 1.5 m parent is visible across a
 //!   room), which is how the simulator counts robots in the rendered images. (Until
@@ -94,7 +95,7 @@ fn sight(map: &Map, a: Vertex, b: Vertex, closed: bool) -> bool {
 /// it is turned, radius `radius_m` times sqrt 2 (a square's half-diagonal; more than a
 /// narrower rectangle's), grown by `params.view_margin_m` for how far it may stand off its
 /// vertex: its centre or a point of the disc's diameter across the sight line must be in
-/// sight, the diameter sampled at both ends and every 1/16 cell between (3 cm at
+/// sight, the diameter sampled at both ends and every 1/16 cell or less between (3 cm at
 /// d = 0.5 m; a gap the camera sees as narrower than that may be missed). Earlier on
 /// 2026-11-27 only the centre and the two ends were tested, which misses a robot whose ends are
 /// hidden (behind obstacles, or past the map's edge for the disc's margin) while a part in

@@ -1,4 +1,5 @@
-//! One stage of the mission at the grid level: the children ordered by distance, the stage's roadmaps driven timestep by timestep, and the mop-up of vertices a stage left.
+//! One stage of the mission at the grid level: the children ordered by distance, the
+//! stage's roadmaps driven timestep by timestep, and the mop-up of vertices a stage left.
 
 use super::*;
 

@@ -81,8 +81,9 @@ impl Run<'_> {
     }
 
     /// Moves every robot of `goals` to its target together, one step each per timestep
-    /// (geodesic through `within`, or through anything for a robot that starts outside it). Returns whether all arrived; when a timestep moves
-    /// nobody, the robots stay where they got to.
+    /// (geodesic through `within`, or through anything for a robot that starts outside
+    /// it). Returns whether all arrived; when a timestep moves nobody, the robots stay
+    /// where they got to.
     fn move_together(
         &mut self,
         goals: &[(usize, Vertex)],

@@ -1,4 +1,6 @@
-//! Teleoperation of one child by the parent: orders and their resending, replies, moves towards a goal with compass turns and dead reckoning out of view, supervision of the current task.
+//! Teleoperation of one child by the parent: orders and their resending, replies, moves
+//! towards a goal with compass turns and dead reckoning out of view, supervision of the
+//! current task.
 
 use super::*;
 
