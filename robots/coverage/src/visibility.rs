@@ -14,10 +14,9 @@
 //!   is in sight of `w`'s centre (no occupied cell's inside crossed,
 //!   [`line_of_sight_open`] and [`segment_open`]: grazing a corner does not hide it, as it
 //!   does not in the rendered image, nor does a gap between two obstacles that meet at a
-//!   corner): `u`'s centre, or a point of the diameter across the
-//!   sight line of the disc that holds its footprint (half-diagonal `√2 ρ`, plus
-//!   `view_margin_m`), sampled every 1/16 cell or less; and the disc of radius `ρ`
-//!   overlaps the cone:
+//!   corner): `u`'s centre, or a point of the diameter across the sight line of the disc
+//!   that holds its footprint (half-diagonal `√2 ρ`, plus `view_margin_m`), sampled every
+//!   1/16 cell or less; and the disc of radius `ρ` overlaps the cone:
 //!   `angle(u - w, direction) <= fov / 2 + asin(ρ / |u - w|)`, at any distance: a robot the
 //!   camera can see is in the image however far it is (a 1.5 m parent is visible across a
 //!   room), which is how the simulator counts robots in the rendered images. (Until
