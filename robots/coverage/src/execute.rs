@@ -61,6 +61,17 @@ mod moves;
 mod stage;
 mod together;
 
+/// Why a stage transition was a following behaviour (Section IV.D).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Following {
+    /// Fewer than N vertices in H (Eq. 8): the paper's test.
+    FewInH,
+    /// H holds N vertices, but the children cannot all get to them through LOS(v_p^t),
+    /// where the parent can track them; ours, since the paper does not say what happens
+    /// then (README, "Transitions").
+    HOutOfReach,
+}
+
 /// Which part of the mission a timestep belongs to.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "snake_case")]
@@ -120,6 +131,10 @@ pub struct Plan {
     pub coordination_timesteps: usize,
     /// Stage transitions done by the following behaviour.
     pub following_behaviours: usize,
+    /// Of `following_behaviours`, those in which H held N vertices but the children could
+    /// not all get to them through LOS(v_p^t), where the parent can track them
+    /// (ours: the paper does not say what happens then); the rest are the paper's |H| < N.
+    pub following_out_of_reach: usize,
     /// Unit steps of all robots together.
     pub robot_steps: usize,
 }
@@ -382,12 +397,16 @@ pub fn plan_with(
     };
     let mut child_sets = Vec::new();
     let mut following_behaviours = 0;
+    let mut following_out_of_reach = 0;
     let mut skipped_stages = Vec::new();
     for (t, &vp) in order.iter().enumerate() {
         run.stage = t;
         match run.transition(vp) {
-            Ok(true) => following_behaviours += 1,
-            Ok(false) => {}
+            Ok(Some(cause)) => {
+                following_behaviours += 1;
+                following_out_of_reach += usize::from(cause == Following::HOutOfReach);
+            }
+            Ok(None) => {}
             Err(_) => {
                 // Every step made so far was legal; the team simply stays where it got to
                 // and later stages pick up this stage's vertices.
@@ -464,6 +483,7 @@ pub fn plan_with(
         mapping_timesteps,
         coordination_timesteps,
         following_behaviours,
+        following_out_of_reach,
         robot_steps: run.robot_steps,
         frames: run.frames,
     })

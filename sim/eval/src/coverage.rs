@@ -14,6 +14,9 @@ pub struct CoverageMetrics {
     pub parent_vertices: usize,
     /// Following behaviours executed.
     pub following: usize,
+    /// Of `following`, those in which H held N vertices but the children could not all get
+    /// to them within the parent's line of sight (ours; the rest are the paper's |H| < N).
+    pub following_out_of_reach: usize,
     /// Mapping timesteps.
     pub mapping_timesteps: usize,
     /// Coordination timesteps.
@@ -45,6 +48,7 @@ impl CoverageMetrics {
             vertices: plan.vertices,
             parent_vertices: plan.parent_vertices.len(),
             following: plan.following_behaviours,
+            following_out_of_reach: plan.following_out_of_reach,
             mapping_timesteps: plan.mapping_timesteps,
             coordination_timesteps: plan.coordination_timesteps,
             total_timesteps: plan.mapping_timesteps + plan.coordination_timesteps,

@@ -205,7 +205,7 @@ pub struct Sweep {
 }
 
 /// Metric columns of a planning sweep's `runs.csv`, in order.
-pub const METRICS: [&str; 13] = [
+pub const METRICS: [&str; 14] = [
     "vertices",
     "parent_vertices",
     "following",
@@ -219,6 +219,7 @@ pub const METRICS: [&str; 13] = [
     "coverable_coverage",
     "skipped_stages",
     "revisited",
+    "following_out_of_reach",
 ];
 
 fn metric_values(m: &CoverageMetrics) -> Vec<f64> {
@@ -236,6 +237,7 @@ fn metric_values(m: &CoverageMetrics) -> Vec<f64> {
         m.coverable_coverage,
         m.skipped_stages as f64,
         m.revisited as f64,
+        m.following_out_of_reach as f64,
     ]
 }
 

@@ -173,11 +173,11 @@ impl Run<'_> {
     }
 
     /// Moves the team from the parent's vertex to `to`: through H, or by the following
-    /// behaviour (returns `true` then).
-    pub(super) fn transition(&mut self, to: Vertex) -> Result<bool, PlanError> {
+    /// behaviour (returns why then).
+    pub(super) fn transition(&mut self, to: Vertex) -> Result<Option<Following>, PlanError> {
         let from = self.pos[0];
         if from == to {
-            return Ok(false);
+            return Ok(None);
         }
         let n = self.pos.len() - 1;
         let stuck = PlanError::Stuck {
@@ -208,8 +208,8 @@ impl Run<'_> {
                 in_h[v] &= !on_path[v];
             }
         }
-        let mut following = h_count < n;
-        if !following {
+        let mut following = (h_count < n).then_some(Following::FewInH);
+        if following.is_none() {
             // Children to distinct vertices of H, staying in the parent's sight.
             let mut los_from = vec![false; self.map.len()];
             for &v in &self.vis.los[from] {
@@ -220,14 +220,14 @@ impl Run<'_> {
             if !self.gather(&order, &|v| in_h[v], &|v| los_from[v] || in_h[v]) {
                 // Undo and fall back to following.
                 self.restore(saved);
-                following = true;
+                following = Some(Following::HOutOfReach);
             }
         }
-        if !following {
+        let Some(cause) = following else {
             // The parent drives, children in its way making way.
             self.drive_parent(to, Phase::Coordination, &|_| false)?;
-            return Ok(false);
-        }
+            return Ok(None);
+        };
         // Children on the parent's path step off it (one that cannot is moved ahead of the
         // parent as it drives), then follow it in file.
         let on: Vec<usize> = (1..=n).filter(|&j| on_path[self.pos[j]]).collect();
@@ -245,7 +245,7 @@ impl Run<'_> {
             .filter(|&j| !around[self.pos[j]])
             .collect();
         let _ = self.gather(&outside, &|v| around[v], &|_| true);
-        Ok(true)
+        Ok(Some(cause))
     }
 }
 
@@ -308,7 +308,7 @@ mod tests {
         let start = run.pos.clone();
         let to = map.at(8, 2).unwrap();
         let following = run.transition(to).unwrap();
-        assert!(!following, "H is large in an open room");
+        assert_eq!(following, None, "H is large in an open room");
         assert_eq!(run.pos[0], to);
         frames_moving_several(&map, &start, &run.frames);
         // The children's part is the frames before the parent's first step. Each child walks
@@ -351,7 +351,8 @@ mod tests {
         let start = run.pos.clone();
         let to = map.at(19, 2).unwrap();
         let path = map.path_to(start[0], |v| v == to, |_| true).unwrap().len() - 1;
-        assert!(run.transition(to).unwrap(), "a following behaviour");
+        // H is empty: a following behaviour by the paper's own test.
+        assert_eq!(run.transition(to).unwrap(), Some(Following::FewInH));
         assert_eq!(run.pos[0], to);
         let several = frames_moving_several(&map, &start, &run.frames);
         assert!(
@@ -367,5 +368,34 @@ mod tests {
         for &c in &run.pos[1..] {
             assert!(vis.los[to].binary_search(&c).is_ok(), "{:?}", map.cell(c));
         }
+    }
+
+    #[test]
+    fn a_child_cut_off_from_h_by_the_parent_makes_a_following_behaviour_of_our_kind() {
+        // A one-cell corridor: the child stands west of the parent, the next parent vertex
+        // is 2 m east. H (Eq. 8) holds the three cells between the two parent vertices, so
+        // |H| >= N and the paper's test asks for no following behaviour; but the child's part
+        // of LOS(v_p^t) meets H only through the parent's own vertex, which is in neither
+        // set (v is not in LOS(v)). The transition is a following behaviour of the second
+        // kind, and the child still ends in the parent's line of sight at `to`.
+        let rows = ["#########", "k.P......", "#########"];
+        let map = Map::from_text(&rows, 0.5);
+        let params = CoverageParams {
+            children: 1,
+            ..CoverageParams::default()
+        };
+        let vis = Visibility::compute(&map, &params);
+        let mut run = run_on(&map, &params, &vis, &rows);
+        let start = run.pos.clone();
+        let to = map.at(6, 1).unwrap();
+        let h = vis.los[start[0]]
+            .iter()
+            .filter(|&&v| v != to && vis.los[to].binary_search(&v).is_ok())
+            .count();
+        assert_eq!(h, 3, "H: the cells between the two parent vertices");
+        assert_eq!(run.transition(to).unwrap(), Some(Following::HOutOfReach));
+        assert_eq!(run.pos[0], to);
+        frames_moving_several(&map, &start, &run.frames);
+        assert!(vis.los[to].binary_search(&run.pos[1]).is_ok());
     }
 }
