@@ -66,9 +66,10 @@ mod together;
 enum Following {
     /// Fewer than N vertices in H (Eq. 8): the paper's test.
     FewInH,
-    /// H holds N vertices, but the children cannot all get to them through LOS(v_p^t),
-    /// where the parent can track them; ours, since the paper does not say what happens
-    /// then (README, "Transitions").
+    /// H holds at least N vertices (those off the parent's path where there are N of them),
+    /// but the children cannot all get to them through LOS(v_p^t), where the parent can
+    /// track them; ours, since the paper does not say what happens then (README,
+    /// "Transitions").
     HOutOfReach,
 }
 
@@ -131,8 +132,8 @@ pub struct Plan {
     pub coordination_timesteps: usize,
     /// Stage transitions done by the following behaviour.
     pub following_behaviours: usize,
-    /// Of `following_behaviours`, those in which H held N vertices but the children could
-    /// not all get to them through LOS(v_p^t), where the parent can track them
+    /// Of `following_behaviours`, those in which H held at least N vertices but the children
+    /// could not all get to them through LOS(v_p^t), where the parent can track them
     /// (ours: the paper does not say what happens then); the rest are the paper's |H| < N.
     pub following_out_of_reach: usize,
     /// Unit steps of all robots together.

@@ -14,8 +14,9 @@ pub struct CoverageMetrics {
     pub parent_vertices: usize,
     /// Following behaviours executed.
     pub following: usize,
-    /// Of `following`, those in which H held N vertices but the children could not all get
-    /// to them within the parent's line of sight (ours; the rest are the paper's |H| < N).
+    /// Of `following`, those in which H held at least N vertices but the children could not
+    /// all get to them within the parent's line of sight (ours; the rest are the paper's
+    /// |H| < N).
     pub following_out_of_reach: usize,
     /// Mapping timesteps.
     pub mapping_timesteps: usize,

@@ -371,23 +371,24 @@ mod tests {
     }
 
     #[test]
-    fn a_child_cut_off_from_h_by_the_parent_makes_a_following_behaviour_of_our_kind() {
-        // A one-cell corridor: the child stands west of the parent, the next parent vertex
-        // is 2 m east. H (Eq. 8) holds the three cells between the two parent vertices, so
-        // |H| >= N and the paper's test asks for no following behaviour; but the child's part
-        // of LOS(v_p^t) meets H only through the parent's own vertex, which is in neither
-        // set (v is not in LOS(v)). The transition is a following behaviour of the second
-        // kind, and the child still ends in the parent's line of sight at `to`.
-        let rows = ["#########", "k.P......", "#########"];
+    fn children_cut_off_from_h_by_the_parent_make_a_following_behaviour_of_our_kind() {
+        // A one-cell corridor: three children stand west of the parent, the next parent
+        // vertex is 2 m east. H (Eq. 8) holds the three cells between the two parent
+        // vertices, so |H| = N and the paper's test asks for no following behaviour (it
+        // would with one child more); but the children's part of LOS(v_p^t) meets H only
+        // through the parent's own vertex, which is in neither set (v is not in LOS(v)). The
+        // transition is a following behaviour of the second kind, and the children still end
+        // in the parent's line of sight at `to`.
+        let rows = ["############", "kkkP........", "############"];
         let map = Map::from_text(&rows, 0.5);
         let params = CoverageParams {
-            children: 1,
+            children: 3,
             ..CoverageParams::default()
         };
         let vis = Visibility::compute(&map, &params);
         let mut run = run_on(&map, &params, &vis, &rows);
         let start = run.pos.clone();
-        let to = map.at(6, 1).unwrap();
+        let to = map.at(7, 1).unwrap();
         let h = vis.los[start[0]]
             .iter()
             .filter(|&&v| v != to && vis.los[to].binary_search(&v).is_ok())
@@ -396,6 +397,8 @@ mod tests {
         assert_eq!(run.transition(to).unwrap(), Some(Following::HOutOfReach));
         assert_eq!(run.pos[0], to);
         frames_moving_several(&map, &start, &run.frames);
-        assert!(vis.los[to].binary_search(&run.pos[1]).is_ok());
+        for &c in &run.pos[1..] {
+            assert!(vis.los[to].binary_search(&c).is_ok(), "{:?}", map.cell(c));
+        }
     }
 }
