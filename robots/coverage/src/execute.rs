@@ -113,8 +113,8 @@ pub struct Plan {
     pub unreached: Vec<Vertex>,
     /// Stages (indices into `parent_vertices`) skipped because the team could not be moved
     /// there (none on the Table I-II sweeps, and `hetsim regress` requires none: the moves of
-    /// [`moves`] let robots by each other; the after-tour revisits image what a skipped
-    /// stage would have).
+    /// `execute/moves.rs` let robots by each other; the after-tour revisits image what a
+    /// skipped stage would have).
     pub skipped_stages: Vec<usize>,
     /// Vertices imaged after the tour, with the parent on a vertex (not necessarily a
     /// parent vertex) that has them in its LOS_free: those the stages left (a view the team
