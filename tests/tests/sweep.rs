@@ -2,9 +2,13 @@
 //! catches moved metrics.
 
 use hetsim_eval::regress::{regress, Baseline};
-use hetsim_eval::sweep::{load_sweep, merge, run_sweep};
+use hetsim_eval::sweep::{load_sweep, merge, run_sweep, METRICS};
 use hetsim_tests::{hetsim, repo};
 use std::path::Path;
+
+/// Columns of the small sweep's `runs.csv`: the run's index, its two axes, its seed and the
+/// planner's metrics.
+const COLUMNS: usize = 4 + METRICS.len();
 
 fn sweep_file(dir: &Path) -> std::path::PathBuf {
     let path = dir.join("small.toml");
@@ -243,7 +247,7 @@ fn a_killed_sweep_leaves_only_whole_rows_and_resumes_to_the_same_files() {
     for row in &finished {
         let text = std::fs::read_to_string(row).unwrap();
         assert!(
-            text.ends_with('\n') && text.trim_end().split(',').count() == 17,
+            text.ends_with('\n') && text.trim_end().split(',').count() == COLUMNS,
             "whole row in {}: {text:?}",
             row.display()
         );
@@ -289,7 +293,9 @@ fn a_short_or_mangled_row_file_is_an_error_naming_the_file_not_a_panic() {
         .unwrap_err()
         .to_string();
     assert!(
-        e.contains("000003.csv") && e.contains("4 fields") && e.contains("17 columns"),
+        e.contains("000003.csv")
+            && e.contains("4 fields")
+            && e.contains(&format!("{COLUMNS} columns")),
         "{e}"
     );
     // A metric that is not a number names its column.
