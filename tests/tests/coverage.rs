@@ -136,6 +136,35 @@ fn no_stage_is_skipped_on_table_one_s_most_obstructed_maps() {
     }
 }
 
+/// Table II's seed 7 at r_los = 1 m: with the team moving around the parent (2026-11-28),
+/// five to eight children ended the tour with two of them walled into a pocket in the view
+/// of the last vertex to revisit, by the parent's stand and the grabbing child; the next
+/// stand lets them out, and every vertex some vertex sees freely is imaged.
+#[test]
+fn a_view_walled_in_by_the_parent_s_stand_is_cleared_from_another_stand() {
+    let sweep = load_sweep(&repo().join("scenarios/sweeps/table2.toml")).unwrap();
+    let axis = |name: &str| sweep.file.axes.keys().position(|k| k == name).unwrap();
+    let (r_los, children) = (axis("coverage.r_los_m"), axis("coverage.children"));
+    let runs: Vec<_> = sweep
+        .runs
+        .iter()
+        .filter(|run| {
+            run.seed == 7
+                && run.values[r_los].as_float() == Some(1.0)
+                && matches!(run.values[children].as_integer(), Some(5..=8))
+        })
+        .collect();
+    assert_eq!(runs.len(), 4);
+    for run in runs {
+        let scenario = sweep.scenario(run).unwrap();
+        let (_, params, plan) = plan_scenario(&scenario).unwrap();
+        let what = format!("{} children", params.children);
+        assert_eq!(plan.skipped_stages, Vec::<usize>::new(), "{what}");
+        assert_eq!(plan.unreached, Vec::<usize>::new(), "{what}");
+        assert_eq!(plan.coverable_coverage(), 1.0, "{what}");
+    }
+}
+
 #[test]
 fn a_full_size_map_is_covered_and_the_plan_is_reproducible() {
     let map = random_map(30.0, 0.2, 11);

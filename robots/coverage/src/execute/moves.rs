@@ -449,8 +449,11 @@ impl Run<'_> {
     /// Brings a child onto `c` with the parent on another vertex that has `c` in its
     /// LOS_free, for a vertex the stage's parent vertex cannot let a child reach (the parent
     /// would have to leave through `c` itself, as at the end of a dead end): the parent
-    /// drives to the nearest such stands in turn and lets a child through there. The parent
-    /// stays on the stand; the next grab or stage moves it on. Returns the child.
+    /// drives to the nearest such stands in turn and lets a child through there, until the
+    /// child's view there can be cleared too. (A stand can close the only way out of the
+    /// view: on one 1 m map the parent's stand and the grabbing child walled two children
+    /// into a pocket in its view; the next stand let them out.) The parent stays on the
+    /// stand; the next grab or stage moves it on. Returns the child.
     pub(super) fn bring_child_from_stand(
         &mut self,
         phase: Phase,
@@ -470,7 +473,9 @@ impl Run<'_> {
                 continue;
             }
             if let Some(j) = self.bring_child(phase, &|v| v == c, &|_| true)? {
-                return Ok(Some(j));
+                if self.clear_view(j, c) {
+                    return Ok(Some(j));
+                }
             }
         }
         Ok(None)

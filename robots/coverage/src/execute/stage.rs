@@ -264,7 +264,7 @@ impl Run<'_> {
 
     /// Everyone else leaves the view of child `robot` on `c`; whether its view is clear
     /// (always, under [`ViewRule::StartPoints`], which does not check grabs).
-    fn clear_view(&mut self, robot: usize, c: Vertex) -> bool {
+    pub(super) fn clear_view(&mut self, robot: usize, c: Vertex) -> bool {
         if self.params.views == ViewRule::StartPoints {
             return self.pos[robot] == c;
         }

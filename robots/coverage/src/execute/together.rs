@@ -10,8 +10,11 @@
 //! * **Following behaviour.** Children on the parent's path step off it together. The
 //!   parent drives with the children in file behind it: each timestep the parent steps on,
 //!   then the k-th child (nearest the parent first) steps towards the vertex the parent held
-//!   k timesteps before. When the parent has arrived, the children spread to the nearest
-//!   free vertices of its line of sight together.
+//!   k timesteps before. When the parent has arrived, the children outside its line of
+//!   sight spread into it together, as many as it has free vertices for, the nearest child
+//!   to the deepest of the vertices chosen (they arrive in file: README, "Coverage planning
+//!   decisions", for the measured effect).
+//! * Ways are planned around the robots that stay where they are (the parent above all).
 //!
 //! In a timestep the robots step in a fixed order onto vertices nobody holds at that moment,
 //! so a robot may enter the vertex another left in the same timestep (a train, which the
@@ -24,13 +27,20 @@ use super::*;
 impl Run<'_> {
     /// Distinct targets among the vertices where `goal` holds for `robots`, in the order
     /// given: each takes the nearest one not yet taken (geodesic through `within`, or
-    /// through anything for a robot already outside it) that no robot outside `robots`
-    /// stands on. Robots with no such target are left out.
+    /// through anything for a robot already outside it, and never through a robot outside
+    /// `robots`, which stays where it is). Robots with no such target are left out.
+    ///
+    /// `deepest_first` then hands the same targets out again, the farthest from the first
+    /// robot to it, the next farthest to the second, and so on: for robots arriving one
+    /// behind the other through one way in, so that the first goes deepest and none stops
+    /// in the way of those behind it. (Nearest-first pairing stopped the first robot at the
+    /// way in, and the rest had to be moved one at a time: README, "Transitions".)
     fn assign(
         &self,
         robots: &[usize],
         goal: &dyn Fn(Vertex) -> bool,
         within: &dyn Fn(Vertex) -> bool,
+        deepest_first: bool,
     ) -> Vec<(usize, Vertex)> {
         let mut taken = vec![false; self.map.len()];
         for (q, &p) in self.pos.iter().enumerate() {
@@ -38,6 +48,7 @@ impl Run<'_> {
                 taken[p] = true;
             }
         }
+        let standing = taken.clone();
         let mut goals = Vec::with_capacity(robots.len());
         for &k in robots {
             // A child already out of the region may cross anything to get back.
@@ -47,12 +58,20 @@ impl Run<'_> {
                 .path_to(
                     self.pos[k],
                     |v| goal(v) && !taken[v],
-                    |v| roam || within(v) || goal(v),
+                    |v| !standing[v] && (roam || within(v) || goal(v)),
                 )
                 .and_then(|path| path.last().copied());
             if let Some(t) = target {
                 taken[t] = true;
                 goals.push((k, t));
+            }
+        }
+        if deepest_first && goals.len() > 1 {
+            let dist = self.map.distances(self.pos[goals[0].0], |v| !standing[v]);
+            let mut targets: Vec<Vertex> = goals.iter().map(|&(_, t)| t).collect();
+            targets.sort_by_key(|&t| (std::cmp::Reverse(dist[t]), t));
+            for (g, t) in goals.iter_mut().zip(targets) {
+                g.1 = t;
             }
         }
         goals
@@ -84,18 +103,38 @@ impl Run<'_> {
     /// (geodesic through `within`, or through anything for a robot that starts outside
     /// it). Returns whether all arrived; when a timestep moves nobody, the robots stay
     /// where they got to.
+    ///
+    /// The robots not in `goals` stay where they are, so the ways are planned around them;
+    /// a robot whose target lies only beyond one heads there all the same (and where it
+    /// gets stuck the one-at-a-time moves take over). Until 2026-11-28 the ways went
+    /// through them, and a robot whose way led across the parent stopped beside it.
     fn move_together(
         &mut self,
         goals: &[(usize, Vertex)],
         phase: Phase,
         within: &dyn Fn(Vertex) -> bool,
     ) -> bool {
+        let mut standing = vec![false; self.map.len()];
+        for (q, &p) in self.pos.iter().enumerate() {
+            if !goals.iter().any(|&(k, _)| k == q) {
+                standing[p] = true;
+            }
+        }
         let fields: Vec<Vec<usize>> = goals
             .iter()
             .map(|&(k, t)| {
                 let roam = !within(self.pos[k]);
-                self.map
-                    .distances_until(t, |v| roam || within(v), &[self.pos[k]])
+                let around = self.map.distances_until(
+                    t,
+                    |v| !standing[v] && (roam || within(v)),
+                    &[self.pos[k]],
+                );
+                if around[self.pos[k]] != usize::MAX {
+                    around
+                } else {
+                    self.map
+                        .distances_until(t, |v| roam || within(v), &[self.pos[k]])
+                }
             })
             .collect();
         loop {
@@ -123,8 +162,9 @@ impl Run<'_> {
         robots: &[usize],
         goal: &dyn Fn(Vertex) -> bool,
         within: &dyn Fn(Vertex) -> bool,
+        deepest_first: bool,
     ) -> bool {
-        let goals = self.assign(robots, goal, within);
+        let goals = self.assign(robots, goal, within, deepest_first);
         self.move_together(&goals, Phase::Coordination, within);
         let mut all = true;
         for &j in robots {
@@ -217,7 +257,7 @@ impl Run<'_> {
             }
             let order = self.nearest_first(|v| in_h[v]);
             let saved = self.snapshot();
-            if !self.gather(&order, &|v| in_h[v], &|v| los_from[v] || in_h[v]) {
+            if !self.gather(&order, &|v| in_h[v], &|v| los_from[v] || in_h[v], false) {
                 // Undo and fall back to following.
                 self.restore(saved);
                 following = Some(Following::HOutOfReach);
@@ -231,20 +271,27 @@ impl Run<'_> {
         // Children on the parent's path step off it (one that cannot is moved ahead of the
         // parent as it drives), then follow it in file.
         let on: Vec<usize> = (1..=n).filter(|&j| on_path[self.pos[j]]).collect();
-        let _ = self.gather(&on, &|v| !on_path[v], &|_| true);
+        let _ = self.gather(&on, &|v| !on_path[v], &|_| true, false);
         self.drive_in_formation(to)?;
         let mut around = vec![false; self.map.len()];
         for &v in &self.vis.los[to] {
             around[v] = true;
         }
-        // A child that cannot get into LOS(to) (the parent's vertex cuts it off) stays where
-        // it is; the stage's roadmaps start from wherever the children stand.
+        // A child that cannot get into LOS(to) (the parent's vertex cuts it off), or for
+        // which LOS(to) has no room left (its free vertices nobody holds), stays where it
+        // is; the stage's roadmaps start from wherever the children stand. The children
+        // arrive in file, the nearest going deepest.
+        let room = self.vis.los[to]
+            .iter()
+            .filter(|&&v| v != to && !self.pos.contains(&v))
+            .count();
         let outside: Vec<usize> = self
             .nearest_first(|v| around[v])
             .into_iter()
             .filter(|&j| !around[self.pos[j]])
+            .take(room)
             .collect();
-        let _ = self.gather(&outside, &|v| around[v], &|_| true);
+        let _ = self.gather(&outside, &|v| around[v], &|_| true, true);
         Ok(Some(cause))
     }
 }
@@ -368,6 +415,72 @@ mod tests {
         for &c in &run.pos[1..] {
             assert!(vis.los[to].binary_search(&c).is_ok(), "{:?}", map.cell(c));
         }
+    }
+
+    #[test]
+    fn a_robot_moving_together_goes_around_the_parent_not_into_it() {
+        // The child's target lies two cells east of the parent, which stands still between
+        // them. The way around it is 6 steps; a way planned through the parent stops the
+        // child beside it (every step left would lead away from the target), and moving
+        // together reports failure.
+        let rows = [".....", "k.P..", "....."];
+        let map = Map::from_text(&rows, 0.5);
+        let params = CoverageParams {
+            children: 1,
+            ..CoverageParams::default()
+        };
+        let vis = Visibility::compute(&map, &params);
+        let mut run = run_on(&map, &params, &vis, &rows);
+        let start = run.pos.clone();
+        let target = map.at(4, 1).unwrap();
+        assert!(run.move_together(&[(1, target)], Phase::Coordination, &|_| true));
+        frames_moving_several(&map, &start, &run.frames);
+        assert_eq!(run.pos, vec![start[0], target]);
+        assert_eq!(run.frames.len(), 6);
+    }
+
+    #[test]
+    fn children_arriving_in_file_fill_a_small_line_of_sight_together() {
+        // r_los = 1 m: LOS(to) is the 12 vertices within two cells of the parent, in a
+        // 5 x 5 room. Six children stand in file in the corridor that enters the room on the
+        // parent's row, all outside LOS(to), as a following behaviour leaves them. The
+        // nearest goes deepest (two cells east of the parent, 7 steps around it), the rest
+        // fill in behind it, and the corridor's mouth is taken last. In a train each child
+        // starts one step further back than the one before it and has no farther to go, so
+        // the gather takes at most 7 + 6 timesteps. (Handing out the nearest vertex first,
+        // the first child stopped in the mouth, the rest were moved one at a time, pushing
+        // each other about, and one ended outside LOS(to).)
+        let rows = [
+            "######.....",
+            "######.....",
+            "kkkkkk..P..",
+            "######.....",
+            "######.....",
+        ];
+        let map = Map::from_text(&rows, 0.5);
+        let params = CoverageParams {
+            r_los_m: 1.0,
+            children: 6,
+            ..CoverageParams::default()
+        };
+        let vis = Visibility::compute(&map, &params);
+        let mut run = run_on(&map, &params, &vis, &rows);
+        let start = run.pos.clone();
+        let to = start[0];
+        assert_eq!(vis.los[to].len(), 12);
+        let mut around = vec![false; map.len()];
+        for &v in &vis.los[to] {
+            around[v] = true;
+        }
+        let file = run.nearest_first(|v| around[v]);
+        assert!(file.iter().all(|&j| !around[start[j]]), "all outside");
+        assert!(run.gather(&file, &|v| around[v], &|_| true, true));
+        frames_moving_several(&map, &start, &run.frames);
+        assert_eq!(run.pos[0], to, "the parent stays");
+        for &c in &run.pos[1..] {
+            assert!(around[c], "{:?}", map.cell(c));
+        }
+        assert!(run.frames.len() <= 7 + 6, "{} timesteps", run.frames.len());
     }
 
     #[test]
