@@ -301,6 +301,14 @@ fn assert_tracking(tracking: &Value, min_fixes: u64) {
 // not move. Before: lab 6e697db4 / 72966712, indoor-team 2ba4360d / 7bcd588e, indoor-grid-20
 // 80030cc7.
 
+// The lab, indoor-team and indoor-grid-20 digests moved when the team's coordination began
+// to plan its ways around the robots that stay put, to send the nearest child deepest when
+// children arrive in file, and to bring no more children into the parent's line of sight
+// than it has room for; a revisit's stand that walls a child's view in is left for the next
+// one; and indoor-team's `view_margin_m` grew to 0.12 m (issue 18). village-short did not
+// move. Before: lab afe36c9d / 4c1ce2ab, indoor-team 0bd8e519 / 1c9c7432, indoor-grid-20
+// 2c75e2c2.
+
 /// The lab mission of seed 002 in lockstep, beside its digest: the parent teleoperates the
 /// children, the children image every vertex, and the images localize (this was
 /// `tests/team.rs`'s lab test, which made four more lab runs).
@@ -313,12 +321,12 @@ fn golden_lab_mission() {
             (
                 LAVAPIPE.0,
                 LAVAPIPE.1,
-                "afe36c9defa3992c8b112d2c12b000befcbf5f0d64f6f7bae29dd4e27f2db211",
+                "bf9fdbaa911df5239e7f60df48f36941243062df16a39fcb0a949e437c8916ac",
             ),
             (
                 LLVMPIPE_GL.0,
                 LLVMPIPE_GL.1,
-                "4c1ce2aba1c7458bf42a1f73e803a12fd107f0d68be545d3f0aa5b0f0b8cb22e",
+                "d505f0e8bd3eb43b8a3ef0da76bf12ab162662c64c180c289ceb2c0017fa1568",
             ),
         ],
         &lab_outputs,
@@ -445,12 +453,12 @@ fn golden_indoor_team_mission() {
             (
                 LAVAPIPE.0,
                 LAVAPIPE.1,
-                "0bd8e51977b25a6e7932fa1d07acd68bc3cce45056591cafd9db7ce8d42a9250",
+                "a5b3b118d522832bee06792a3b9df740288768641dfbbf7ddf2578248af10ce7",
             ),
             (
                 LLVMPIPE_GL.0,
                 LLVMPIPE_GL.1,
-                "1c9c74321b59890936ee314ae8d1f76873c66ba2f06109c66a5e7d842dd72f38",
+                "ecd058c0d5bd3cc1a1680563f9b11d5c83fbb468d17a2b9323de57c2d8af356a",
             ),
         ],
         &|out| {
@@ -484,7 +492,7 @@ fn golden_indoor_grid_20_without_cameras() {
         &[(
             "none",
             "none",
-            "2c75e2c2286cb0b91b43143343b81b58b77e2aeab4310f7d82b7a0c3832f635f",
+            "9c1283b92433571a1eee16e97f870d5816fdefd94e7346df2af2759462f3e741",
         )],
         &|_| {},
     ));
