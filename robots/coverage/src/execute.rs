@@ -36,7 +36,8 @@
 //!   the parent's path when there are N of them), they move there together, then the parent
 //!   drives its shortest path (children in its way make way). Otherwise a following
 //!   behaviour is counted: children on the parent's path step off it, the parent drives with
-//!   the children in file behind it, and they spread into LOS(v_p^(t+1)) together.
+//!   the children in file behind it, and they spread into LOS(v_p^(t+1)) together (as many
+//!   as it has free vertices for, the nearest child going deepest).
 //! * **Start.** The parent first drives from its start vertex to the first parent vertex in
 //!   the same way. Children given no start vertices stand on the free vertices nearest the
 //!   parent (breadth-first order) that are not dead ends.

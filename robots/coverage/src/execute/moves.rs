@@ -453,7 +453,9 @@ impl Run<'_> {
     /// child's view there can be cleared too. (A stand can close the only way out of the
     /// view: on one 1 m map the parent's stand and the grabbing child walled two children
     /// into a pocket in its view; the next stand let them out.) The parent stays on the
-    /// stand; the next grab or stage moves it on. Returns the child.
+    /// stand; the next grab or stage moves it on. Returns the child, on `c` with its view
+    /// clear; `None` when no stand served, with the moves made at the stands tried kept
+    /// (each legal, as a failed grab's always were).
     pub(super) fn bring_child_from_stand(
         &mut self,
         phase: Phase,

@@ -31,10 +31,14 @@ impl Run<'_> {
     /// `robots`, which stays where it is). Robots with no such target are left out.
     ///
     /// `deepest_first` then hands the same targets out again, the farthest from the first
-    /// robot to it, the next farthest to the second, and so on: for robots arriving one
-    /// behind the other through one way in, so that the first goes deepest and none stops
-    /// in the way of those behind it. (Nearest-first pairing stopped the first robot at the
-    /// way in, and the rest had to be moved one at a time: README, "Transitions".)
+    /// robot that got one to it, the next farthest to the second, and so on: for robots
+    /// arriving one behind the other through one way in, so that the first goes deepest and
+    /// none stops in the way of those behind it. Distances are geodesic through vertices no
+    /// robot outside `robots` holds (`within` is not consulted: the one caller lets the
+    /// children go anywhere); where a target or a robot is not reachable that way from the
+    /// first robot, the targets stay as handed out. (Nearest-first pairing stopped the first
+    /// robot at the way in, and the rest had to be moved one at a time: README, "Coverage
+    /// planning decisions", Timesteps.)
     fn assign(
         &self,
         robots: &[usize],
@@ -68,6 +72,12 @@ impl Run<'_> {
         }
         if deepest_first && goals.len() > 1 {
             let dist = self.map.distances(self.pos[goals[0].0], |v| !standing[v]);
+            let connected = goals
+                .iter()
+                .all(|&(k, t)| dist[t] != usize::MAX && dist[self.pos[k]] != usize::MAX);
+            if !connected {
+                return goals;
+            }
             let mut targets: Vec<Vertex> = goals.iter().map(|&(_, t)| t).collect();
             targets.sort_by_key(|&t| (std::cmp::Reverse(dist[t]), t));
             for (g, t) in goals.iter_mut().zip(targets) {
@@ -440,16 +450,46 @@ mod tests {
     }
 
     #[test]
+    fn children_on_both_sides_of_the_parent_keep_targets_on_their_own_side() {
+        // A one-cell corridor, r_los = 1 m: the parent stands in it, one child four cells
+        // west and one four cells east, both outside LOS(to) (two cells either side). Each
+        // takes the nearest vertex of LOS(to), on its own side, two steps away. The parent
+        // cuts the corridor in two, so handing the targets out again deepest first (from the
+        // first child) must leave them as they are: two timesteps, both in LOS(to).
+        let rows = ["#########", "k...P...k", "#########"];
+        let map = Map::from_text(&rows, 0.5);
+        let params = CoverageParams {
+            r_los_m: 1.0,
+            children: 2,
+            ..CoverageParams::default()
+        };
+        let vis = Visibility::compute(&map, &params);
+        let mut run = run_on(&map, &params, &vis, &rows);
+        let start = run.pos.clone();
+        let to = start[0];
+        let mut around = vec![false; map.len()];
+        for &v in &vis.los[to] {
+            around[v] = true;
+        }
+        assert!(run.gather(&[1, 2], &|v| around[v], &|_| true, true));
+        frames_moving_several(&map, &start, &run.frames);
+        assert_eq!(run.pos[1..], [map.at(2, 1).unwrap(), map.at(6, 1).unwrap()]);
+        assert_eq!(run.frames.len(), 2);
+    }
+
+    #[test]
     fn children_arriving_in_file_fill_a_small_line_of_sight_together() {
         // r_los = 1 m: LOS(to) is the 12 vertices within two cells of the parent, in a
         // 5 x 5 room. Six children stand in file in the corridor that enters the room on the
-        // parent's row, all outside LOS(to), as a following behaviour leaves them. The
-        // nearest goes deepest (two cells east of the parent, 7 steps around it), the rest
-        // fill in behind it, and the corridor's mouth is taken last. In a train each child
-        // starts one step further back than the one before it and has no farther to go, so
-        // the gather takes at most 7 + 6 timesteps. (Handing out the nearest vertex first,
-        // the first child stopped in the mouth, the rest were moved one at a time, pushing
-        // each other about, and one ended outside LOS(to).)
+        // parent's row, all outside LOS(to), as a following behaviour leaves them. The six
+        // vertices of LOS(to) nearest the file are the mouth (6, 2), (7, 2), (7, 1), (7, 3),
+        // (8, 1) and (8, 3); the nearest child goes deepest, to (8, 1) beside the parent (4
+        // steps from it around the parent; (8, 3) is as deep and comes later in vertex
+        // order), the rest fill in behind it, and the mouth is taken last. In a train the
+        // k-th child starts k steps behind the first and its target is no deeper, so the
+        // gather takes at most 4 + 5 timesteps. (Handing out the nearest vertex first, the
+        // first child stopped in the mouth, the rest were moved one at a time, pushing each
+        // other about, and one ended outside LOS(to).)
         let rows = [
             "######.....",
             "######.....",
@@ -480,7 +520,12 @@ mod tests {
         for &c in &run.pos[1..] {
             assert!(around[c], "{:?}", map.cell(c));
         }
-        assert!(run.frames.len() <= 7 + 6, "{} timesteps", run.frames.len());
+        assert_eq!(
+            run.pos[file[0]],
+            map.at(8, 1).unwrap(),
+            "the nearest went deepest"
+        );
+        assert!(run.frames.len() <= 4 + 5, "{} timesteps", run.frames.len());
     }
 
     #[test]
