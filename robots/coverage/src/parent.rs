@@ -23,7 +23,9 @@
 //!   timestep starts. A robot moving onto a vertex that another robot leaves in the same
 //!   timestep starts when that robot has arrived. The plan keeps robots on distinct
 //!   vertices and out of each other's views at grab time, so this execution inherits its
-//!   collision and view guarantees up to the children's position errors.
+//!   collision and view guarantees up to the children's position errors. Before the grabs
+//!   it checks the views with the robots where it tracks them, and drives a child off its
+//!   vertex in one back onto it first (`parent/views.rs`).
 //! * **Teleoperation** (Section V.B). To send a child to a vertex, the parent takes the
 //!   child's tracked position, orders a drive towards the goal (the child rotates by
 //!   compass, then drives straight for the distance by its encoders), re-aims it once when it
@@ -61,6 +63,7 @@ mod handover;
 mod sense;
 mod steps;
 mod teleop;
+mod views;
 
 pub use sense::HatTracker;
 
@@ -187,6 +190,9 @@ pub struct ParentStack {
     step_index: usize,
     moves_started: bool,
     grabbing: bool,
+    /// Rounds of driving children back onto their vertices for the current timestep's
+    /// grabs (see `parent/views.rs`).
+    recentres: u32,
     pilot: Option<GroundPilot>,
     /// Moves of the current timestep not started yet: (robot, target, the robot leaving the
     /// target); robot 0 is the parent, robot k the k-th child.
@@ -300,6 +306,7 @@ impl ParentStack {
             step_index: 0,
             moves_started: false,
             grabbing: false,
+            recentres: 0,
             pilot: None,
             waiting: Vec::new(),
             children,

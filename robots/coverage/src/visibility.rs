@@ -129,10 +129,10 @@ pub fn in_view(map: &Map, params: &CoverageParams, w: Vertex, u: Vertex, radius_
 
 /// Lattice points per cell of [`segment_open`]'s endpoints (a 1/1000 cell grid: 0.5 mm at
 /// d = 0.5 m).
-const FINE: i64 = 1000;
+pub(crate) const FINE: i64 = 1000;
 
 /// Points per cell at which [`edge_in_sight`] samples the diameter.
-const ALONG: f64 = 16.0;
+pub(crate) const ALONG: f64 = 16.0;
 
 /// Whether some point of the diameter, across the sight line, of a disc of radius `disc_m`
 /// around `u`'s centre is in sight of `w`'s centre ([`segment_open`]): its two ends, then

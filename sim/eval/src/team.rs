@@ -76,6 +76,13 @@ pub struct TeamMetrics {
     pub tracking_losses: u32,
     /// Orders the parent sent again (radio losses).
     pub resent_orders: u32,
+    /// Children the parent drove back onto their vertices before a grab, having seen them,
+    /// where it tracks them, in the grabbing child's view.
+    pub view_recentres: u32,
+    /// Grabs the parent ordered while it still saw a robot, where it tracks it, in the
+    /// grabbing child's view (its own estimate of the view rule; the truth's count is
+    /// `images_with_robot_in_view` and `images_with_distant_robot_in_view`).
+    pub grabs_with_tracked_robot_in_view: u32,
     /// Database images with another robot in the child camera's view within r_los, where
     /// the plan keeps robots out of the images (should be zero).
     pub images_with_robot_in_view: usize,
@@ -322,6 +329,8 @@ impl TeamMetrics {
             collisions: output.robots.iter().map(|m| m.collisions).sum(),
             tracking_losses: r.tracking_losses,
             resent_orders: r.resent_orders,
+            view_recentres: r.view_recentres,
+            grabs_with_tracked_robot_in_view: r.grabs_with_tracked_robot_in_view,
             images_with_robot_in_view: in_view,
             images_with_distant_robot_in_view: distant,
             localization: crate::localize::in_lockstep(r, output),

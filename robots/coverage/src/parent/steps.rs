@@ -45,8 +45,21 @@ impl ParentStack {
                 }
                 self.release_waiting();
             } else if !self.grabbing {
-                self.grabbing = true;
                 let grabs = plan.frames[self.step_index].grabs.clone();
+                // The grabbing children's views where the parent tracks the robots: a child
+                // off its vertex in one is driven back onto it first (`parent/views.rs`).
+                let (movers, seen) = self.views_to_clear(&grabs);
+                if !movers.is_empty() && self.recentres < views::RECENTRES {
+                    self.recentres += 1;
+                    self.report.view_recentres += movers.len() as u32;
+                    for k in movers {
+                        let goal = self.children[k].planned;
+                        self.start_move(k, goal, 0);
+                    }
+                    continue;
+                }
+                self.report.grabs_with_tracked_robot_in_view += seen;
+                self.grabbing = true;
                 let heading = {
                     let (x, y) = self.coverage.direction.unit();
                     y.atan2(x)
@@ -71,6 +84,7 @@ impl ParentStack {
                 self.report.steps_done = self.step_index;
                 self.moves_started = false;
                 self.grabbing = false;
+                self.recentres = 0;
             }
         }
     }
