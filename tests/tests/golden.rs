@@ -321,12 +321,12 @@ fn golden_lab_mission() {
             (
                 LAVAPIPE.0,
                 LAVAPIPE.1,
-                "bf9fdbaa911df5239e7f60df48f36941243062df16a39fcb0a949e437c8916ac",
+                "3cad81e2e41bb8edfbd37b66c40e6f23fd7b49bd09b34ebfc86d69eeb238b5c8",
             ),
             (
                 LLVMPIPE_GL.0,
                 LLVMPIPE_GL.1,
-                "d505f0e8bd3eb43b8a3ef0da76bf12ab162662c64c180c289ceb2c0017fa1568",
+                "80ce9b1c05c160445fe72ed498b7cda6d886616d9f8ef0b530810f84cf75113d",
             ),
         ],
         &lab_outputs,
@@ -453,12 +453,12 @@ fn golden_indoor_team_mission() {
             (
                 LAVAPIPE.0,
                 LAVAPIPE.1,
-                "a5b3b118d522832bee06792a3b9df740288768641dfbbf7ddf2578248af10ce7",
+                "a28f3f9f2a8ddf3bd86349c30f2a19238e231f8bab32658703d8086c06bc3059",
             ),
             (
                 LLVMPIPE_GL.0,
                 LLVMPIPE_GL.1,
-                "ecd058c0d5bd3cc1a1680563f9b11d5c83fbb468d17a2b9323de57c2d8af356a",
+                "8ff941311d6d399b4330be9b06e101d46a4731ddbad7421b391541db93c44522",
             ),
         ],
         &|out| {
