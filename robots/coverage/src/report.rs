@@ -43,8 +43,8 @@ pub struct TeamReport {
     pub tracking_losses: u32,
     /// Orders sent again because no acknowledgement came.
     pub resent_orders: u32,
-    /// Children driven back onto their vertices because the parent saw them, where it
-    /// tracks them, in the view of a child about to grab (see the parent's `views.rs`).
+    /// Drives of a child back onto its vertex because the parent saw it, where it believes
+    /// it is, in the view of a child about to grab (see the parent's `views.rs`).
     pub view_recentres: u32,
     /// Grabs ordered while the parent still saw a robot, where it tracks it, in the
     /// grabbing child's view (after its rounds of driving children back onto their

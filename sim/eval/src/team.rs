@@ -76,8 +76,8 @@ pub struct TeamMetrics {
     pub tracking_losses: u32,
     /// Orders the parent sent again (radio losses).
     pub resent_orders: u32,
-    /// Children the parent drove back onto their vertices before a grab, having seen them,
-    /// where it tracks them, in the grabbing child's view.
+    /// Drives of a child back onto its vertex before a grab, the parent having seen it,
+    /// where it believes it is, in the grabbing child's view.
     pub view_recentres: u32,
     /// Grabs the parent ordered while it still saw a robot, where it tracks it, in the
     /// grabbing child's view (its own estimate of the view rule; the truth's count is

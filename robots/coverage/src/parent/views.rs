@@ -2,13 +2,15 @@
 //!
 //! The plan keeps every robot out of each grabbing child's view with the robots on their
 //! vertices, each grown by `view_margin_m` for how far it may stand off its vertex. The
-//! teleoperation accepts a child within `arrive_m` of its goal, and after three
-//! corrections, or back in view after a tracking loss, up to `2 arrive_m` (0.14 m): a child
-//! standing that far off can show in another's image though the plan is clear (indoor-team,
+//! teleoperation accepts a child within `arrive_m` of its goal, stops correcting after three
+//! corrections wherever it is, and drives an idle child back in the tracker's view back only
+//! when it is more than `2 arrive_m` (0.14 m) off: a child standing off its vertex can show
+//! in another's image though the plan is clear (indoor-team with a 0.04 m margin,
 //! 2026-11-28: one image with a child 2.3 m away that stood 0.10 m off its vertex).
 //!
 //! So before it orders a timestep's grabs, the parent looks at each grabbing child's view
-//! with the robots where it tracks them (its hat tracker's estimates, its own laser pose).
+//! with the robots where it believes they are (its hat tracker's estimates, dead reckoning
+//! for a child out of the tracker's range, its own laser pose).
 //! A child it finds in a view that would be clear with the two children on their vertices
 //! is driven back onto its vertex first (and the grabbing child too, if it is off its own),
 //! at most [`RECENTRES`] times a timestep. What is still in view after that, or in view

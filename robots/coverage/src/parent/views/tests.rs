@@ -175,15 +175,15 @@ fn a_child_off_its_vertex_in_a_grabbing_child_s_view_is_driven_back_before_the_g
     let mut p = planned_parent();
     let (grabber, other, at) = a_grab_a_small_offset_spoils(&mut p);
     let grabs = p.plan.as_ref().unwrap().frames[p.step_index].grabs.clone();
+    let home = p.children[other].planned;
     p.children[other].estimate = at;
     assert_eq!(p.views_to_clear(&grabs), (vec![other], 1));
     p.advance();
     // The other child is driven back to its vertex, and no grab is ordered yet.
-    assert!(
-        matches!(p.children[other].task, Task::Move { goal, .. } if dist(goal, p.children[other].planned) < 1e-9),
-        "{:?}",
-        p.children[other].task
-    );
+    let Task::Move { goal, .. } = p.children[other].task else {
+        panic!("{:?}", p.children[other].task)
+    };
+    assert!(dist(goal, home) < 1e-9, "driven to {goal:?}, not {home:?}");
     assert_eq!(p.children[grabber].task, Task::Idle);
     assert_eq!(p.report.view_recentres, 1);
     // Back on its vertex: the grab goes ahead, with nothing in view.
