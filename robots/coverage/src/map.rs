@@ -203,6 +203,28 @@ impl Map {
     }
 }
 
+/// A random `size` x `size` map of 0.5 m cells, each occupied with probability `occupied`
+/// (the unit tests' random maps).
+#[cfg(test)]
+pub(crate) fn random_map(rng: &mut rand_chacha::ChaCha8Rng, size: usize, occupied: f64) -> Map {
+    use rand::RngExt;
+    let rows: Vec<String> = (0..size)
+        .map(|_| {
+            (0..size)
+                .map(|_| {
+                    if rng.random::<f64>() < occupied {
+                        '#'
+                    } else {
+                        '.'
+                    }
+                })
+                .collect()
+        })
+        .collect();
+    let refs: Vec<&str> = rows.iter().map(String::as_str).collect();
+    Map::from_text(&refs, 0.5)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -460,3 +460,29 @@ impl ParentStack {
         r
     }
 }
+
+/// A parent for `mission` with a test pilot, standing at the mission's start, planned (the
+/// parent-side unit tests' common setup).
+#[cfg(test)]
+fn planned_test_parent(mission: CoverageMission) -> ParentStack {
+    let pilot = hetsim_pilot::GroundPilotParams {
+        track_m: 0.35,
+        max_wheel_mps: 0.5,
+        cruise_mps: 0.3,
+        max_yaw_rate_radps: 1.0,
+        arrive_m: 0.05,
+        steering: hetsim_pilot::Steering::Smooth {
+            turn_in_place_rad: 1.0,
+        },
+    };
+    let [x, y, yaw] = mission.parent_start;
+    let mut p = ParentStack::new(
+        ParentParams::with_pilot(pilot),
+        &Mission::CoverageParent(mission),
+    );
+    let pose = hetsim_msgs::pose_from_xyz_rpy([x, y, 0.0], [0.0, 0.0, yaw]);
+    p.pose = Some(pose);
+    p.make_plan(&pose);
+    assert!(p.plan.is_some(), "the test room has a plan");
+    p
+}

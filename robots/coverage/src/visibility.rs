@@ -371,18 +371,10 @@ mod tests {
 
     #[test]
     fn sight_is_symmetric_on_random_maps_and_open_sight_sees_more() {
-        use rand::{RngExt, SeedableRng};
+        use rand::SeedableRng;
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(9);
         for _ in 0..50 {
-            let rows: Vec<String> = (0..12)
-                .map(|_| {
-                    (0..12)
-                        .map(|_| if rng.random::<f64>() < 0.25 { '#' } else { '.' })
-                        .collect()
-                })
-                .collect();
-            let refs: Vec<&str> = rows.iter().map(String::as_str).collect();
-            let m = Map::from_text(&refs, 0.5);
+            let m = crate::map::random_map(&mut rng, 12, 0.25);
             let free = m.vertices();
             for &a in &free {
                 for &b in &free {

@@ -2,11 +2,10 @@
 //! until the child acknowledges it, then small polls until the child's report comes, which
 //! the radio may lose; a child that never answers is given up at the deadline.
 
-use super::super::{dist, ParentParams};
+use super::super::dist;
 use super::*;
 use crate::report::DatabaseImage;
-use hetsim_msgs::{pose_from_xyz_rpy, CoverageMission, Mission, OccupancyGrid, RobotStack};
-use hetsim_pilot::{GroundPilotParams, Steering};
+use hetsim_msgs::{CoverageMission, OccupancyGrid, RobotStack};
 
 const S: u64 = 1_000_000_000;
 const STEPS: usize = 3;
@@ -37,24 +36,7 @@ fn mapped_parent() -> ParentStack {
         parent_start: [0.75, 0.25, 0.0],
         localize_steps: STEPS,
     };
-    let pilot = GroundPilotParams {
-        track_m: 0.35,
-        max_wheel_mps: 0.5,
-        cruise_mps: 0.3,
-        max_yaw_rate_radps: 1.0,
-        arrive_m: 0.05,
-        steering: Steering::Smooth {
-            turn_in_place_rad: 1.0,
-        },
-    };
-    let mut p = ParentStack::new(
-        ParentParams::with_pilot(pilot),
-        &Mission::CoverageParent(mission),
-    );
-    let pose = pose_from_xyz_rpy([0.75, 0.25, 0.0], [0.0; 3]);
-    p.pose = Some(pose);
-    p.make_plan(&pose);
-    assert!(p.plan.is_some(), "a free room has a plan");
+    let mut p = super::super::planned_test_parent(mission);
     p.report.database.push(DatabaseImage {
         vertex: (0, 0),
         child: "child1".into(),

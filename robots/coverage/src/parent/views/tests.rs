@@ -1,12 +1,11 @@
 //! The grab-time view check: the point version of the view test against the planner's, and
 //! the parent driving a child back onto its vertex before a grab that would show it.
 
-use super::super::{dist, ParentParams, Task};
+use super::super::{dist, Task};
 use super::*;
 use crate::visibility::in_view;
 use crate::Direction;
-use hetsim_msgs::{pose_from_xyz_rpy, CoverageMission, Mission, OccupancyGrid};
-use hetsim_pilot::{GroundPilotParams, Steering};
+use hetsim_msgs::{pose_from_xyz_rpy, CoverageMission, OccupancyGrid};
 
 fn params() -> CoverageParams {
     CoverageParams {
@@ -28,20 +27,12 @@ fn params() -> CoverageParams {
 /// random 12 x 12 maps, a quarter occupied, both robot sizes).
 #[test]
 fn at_vertex_centres_the_point_test_is_the_planner_s() {
-    use rand::{RngExt, SeedableRng};
+    use rand::SeedableRng;
     let p = params();
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
     let (mut shown, mut pairs) = (0, 0);
     for _ in 0..30 {
-        let rows: Vec<String> = (0..12)
-            .map(|_| {
-                (0..12)
-                    .map(|_| if rng.random::<f64>() < 0.25 { '#' } else { '.' })
-                    .collect()
-            })
-            .collect();
-        let refs: Vec<&str> = rows.iter().map(String::as_str).collect();
-        let m = Map::from_text(&refs, 0.5);
+        let m = crate::map::random_map(&mut rng, 12, 0.25);
         let centre = |v: Vertex| {
             let (c, r) = m.cell(v);
             [c as f64 + 0.5, r as f64 + 0.5]
@@ -97,25 +88,7 @@ fn planned_parent() -> ParentStack {
         parent_start: [0.25, 1.25, 0.0],
         localize_steps: 0,
     };
-    let pilot = GroundPilotParams {
-        track_m: 0.35,
-        max_wheel_mps: 0.5,
-        cruise_mps: 0.3,
-        max_yaw_rate_radps: 1.0,
-        arrive_m: 0.05,
-        steering: Steering::Smooth {
-            turn_in_place_rad: 1.0,
-        },
-    };
-    let mut p = ParentStack::new(
-        ParentParams::with_pilot(pilot),
-        &Mission::CoverageParent(mission),
-    );
-    let pose = pose_from_xyz_rpy([0.25, 1.25, 0.0], [0.0; 3]);
-    p.pose = Some(pose);
-    p.make_plan(&pose);
-    assert!(p.plan.is_some(), "a free room has a plan");
-    p
+    super::super::planned_test_parent(mission)
 }
 
 /// Timestep `t`'s grabs next: everyone on the vertices the plan has them on then, and the
