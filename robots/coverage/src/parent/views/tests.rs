@@ -188,3 +188,73 @@ fn a_child_that_stays_in_view_is_counted_and_the_grab_goes_ahead() {
     assert_eq!(p.report.view_recentres, RECENTRES);
     assert_eq!(p.report.grabs_with_tracked_robot_in_view, 1);
 }
+
+/// The plan's first timestep with one grab, whose child has a free vertex two cells ahead of
+/// it (east) that no robot stands on, set up as [`before_grab`]; returns the two children
+/// and that vertex.
+fn a_grab_with_a_free_vertex_ahead(p: &mut ParentStack) -> (usize, usize, Vertex) {
+    let frames = p.plan.as_ref().expect("planned").frames.len();
+    for t in 0..frames {
+        let frame = &p.plan.as_ref().unwrap().frames[t];
+        let &[(grabber, v)] = frame.grabs.as_slice() else {
+            continue;
+        };
+        let positions = frame.positions.clone();
+        let (c, r) = p.map.cell(v);
+        let Some(ahead) = p.map.at(c as i64 + 2, r as i64) else {
+            continue;
+        };
+        if !positions.contains(&ahead) {
+            before_grab(p, t);
+            return (grabber, 1 - grabber, ahead);
+        }
+    }
+    panic!("no lone grab of the plan has a free vertex two cells ahead");
+}
+
+#[test]
+fn a_child_in_view_on_its_vertex_too_is_counted_not_driven() {
+    let mut p = planned_parent();
+    let (grabber, other, ahead) = a_grab_with_a_free_vertex_ahead(&mut p);
+    let grabs = p.plan.as_ref().unwrap().frames[p.step_index].grabs.clone();
+    // The other child's vertex is 1 m straight ahead of the grabbing child's, so it is in
+    // view on its vertex too (only the planner's margins could allow that); it stands 0.1 m
+    // off it, still in view. Driving it back would not clear the view.
+    let home = p.centre(ahead);
+    p.children[other].planned = home;
+    p.children[other].estimate = [home[0], home[1] + 0.1];
+    assert!(p.seen_in_view(p.children[grabber].planned, home, p.mission.child_radius_m));
+    assert_eq!(p.views_to_clear(&grabs), (vec![], 1));
+    p.advance();
+    assert!(matches!(p.children[grabber].task, Task::Grab { .. }));
+    assert_eq!(p.children[other].task, Task::Idle);
+    assert_eq!(p.report.view_recentres, 0);
+    assert_eq!(p.report.grabs_with_tracked_robot_in_view, 1);
+}
+
+#[test]
+fn the_parent_in_view_is_counted_and_never_driven() {
+    let mut p = planned_parent();
+    let (grabber, _, ahead) = a_grab_with_a_free_vertex_ahead(&mut p);
+    let grabs = p.plan.as_ref().unwrap().frames[p.step_index].grabs.clone();
+    let from = p.children[grabber].estimate;
+    // Where the plan has it, the parent is out of every grabbing child's view.
+    assert_eq!(p.views_to_clear(&grabs), (vec![], 0));
+    // The parent 1 m straight ahead of the grabbing child is counted; the children are
+    // where the plan has them, so nobody is driven.
+    let put_parent = |p: &mut ParentStack, at: [f64; 2]| {
+        p.pose = Some(pose_from_xyz_rpy([at[0], at[1], 0.0], [0.0; 3]));
+    };
+    let in_front = p.centre(ahead);
+    put_parent(&mut p, in_front);
+    assert_eq!(p.views_to_clear(&grabs), (vec![], 1));
+    // 1 m behind it (west), the camera looks away from it.
+    put_parent(&mut p, [from[0] - 1.0, from[1]]);
+    assert_eq!(p.views_to_clear(&grabs), (vec![], 0));
+    // Ahead again: the grab is ordered at once, and counted.
+    put_parent(&mut p, in_front);
+    p.advance();
+    assert!(matches!(p.children[grabber].task, Task::Grab { .. }));
+    assert_eq!(p.report.view_recentres, 0);
+    assert_eq!(p.report.grabs_with_tracked_robot_in_view, 1);
+}
