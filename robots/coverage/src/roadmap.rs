@@ -19,7 +19,8 @@
 //!   grows the graph of the child whose walk (the way from where it stands to its start,
 //!   then its graph) is shortest among those that can grow, so that a child with a long way
 //!   to its start takes fewer vertices (a graph hemmed in by others' cannot grow, so the
-//!   walks need not end together). The graph grown *hills* if it can: an edge `a -> b`
+//!   walks need not end together; the executor ends a round when the first child is idle
+//!   and builds new roadmaps for the rest). The graph grown *hills* if it can: an edge `a -> b`
 //!   becomes `a -> a' -> b' -> b` where `a'`, `b'` are uncovered child vertices beside it;
 //!   otherwise it *branches out* to an uncovered neighbour `c` of a vertex `u` of its graph
 //!   (`u -> c -> u`), which later hilling widens. When no graph can grow, the first

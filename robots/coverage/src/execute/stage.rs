@@ -24,9 +24,9 @@ impl Run<'_> {
     /// vertex at a time.
     ///
     /// A round builds roadmaps for the child vertices still to be imaged from wherever the
-    /// children stand and walks them in parallel; a grab the round could not make (a view
-    /// it could not clear) is left to the next round. Rounds go on while each images
-    /// something; the rest is mopped up.
+    /// children stand and walks them in parallel until the first child is idle; what it has
+    /// not imaged (not reached yet, or a view it could not clear) goes to the next round.
+    /// Rounds go on while each images something; the rest is mopped up.
     pub(super) fn map_stage(&mut self, child_set: &[Vertex]) -> Result<Vec<Vertex>, PlanError> {
         let parent = self.pos[0];
         let mut los_parent = vec![false; self.map.len()];
@@ -71,7 +71,8 @@ impl Run<'_> {
 
     /// One round: the children walk `walks` in parallel, one step each per timestep (a
     /// child whose next vertex is taken waits), and grab on every vertex of `set` they
-    /// reach whose view is clear. A child whose view holds a robot that is walking waits
+    /// reach whose view is clear, until a child is idle while another still walks (once
+    /// the round has imaged something; the caller re-plans the rest from there). A child whose view holds a robot that is walking waits
     /// for it to pass, and a child done with its walk that stands in the view steps out of
     /// it (its walk is extended to the nearest vertex outside the view) while the grabbing
     /// child waits. One whose view holds the parent or a child itself waiting to grab, or a
@@ -93,7 +94,21 @@ impl Run<'_> {
         let mut idx = vec![0usize; n];
         let mut pending = vec![false; n];
         let mut evictions = vec![0usize; n];
+        let imaged_before = imaged_here.len();
         loop {
+            // The round ends as soon as a child is idle (its walk done, or none given) while
+            // another still walks and nobody waits to grab, once it has imaged something:
+            // the stage's remaining vertices then get new roadmaps from where everyone
+            // stands, so the idle child takes a share of the rest instead of waiting for the
+            // longest walk to end. (Each round images something, so the rounds end.)
+            let done = |j: usize| idx[j] + 1 >= walks[j].len();
+            if imaged_here.len() > imaged_before
+                && !pending.contains(&true)
+                && (0..n).any(done)
+                && !(0..n).all(done)
+            {
+                break;
+            }
             let active = (0..n).any(|j| pending[j] || idx[j] + 1 < walks[j].len());
             if !active {
                 break;
