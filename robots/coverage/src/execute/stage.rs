@@ -24,8 +24,9 @@ impl Run<'_> {
     /// vertex at a time.
     ///
     /// A round builds roadmaps for the child vertices still to be imaged from wherever the
-    /// children stand and walks them in parallel until the first child is idle; what it has
-    /// not imaged (not reached yet, or a view it could not clear) goes to the next round.
+    /// children stand and walks them in parallel until the first child is idle (once it
+    /// has imaged something, with nobody waiting to grab); what it has not imaged (not
+    /// reached yet, or a view it could not clear) goes to the next round.
     /// Rounds go on while each images something; the rest is mopped up.
     pub(super) fn map_stage(&mut self, child_set: &[Vertex]) -> Result<Vec<Vertex>, PlanError> {
         let parent = self.pos[0];
@@ -71,9 +72,10 @@ impl Run<'_> {
 
     /// One round: the children walk `walks` in parallel, one step each per timestep (a
     /// child whose next vertex is taken waits), and grab on every vertex of `set` they
-    /// reach whose view is clear, until a child is idle while another still walks (once
-    /// the round has imaged something; the caller re-plans the rest from there). A child whose view holds a robot that is walking waits
-    /// for it to pass, and a child done with its walk that stands in the view steps out of
+    /// reach whose view is clear, until a child is idle while another still walks and
+    /// nobody waits to grab (once the round has imaged something; the caller re-plans the
+    /// rest from there). A child whose view holds a robot that is walking waits for it to
+    /// pass, and a child done with its walk that stands in the view steps out of
     /// it (its walk is extended to the nearest vertex outside the view) while the grabbing
     /// child waits. One whose view holds the parent or a child itself waiting to grab, or a
     /// done child with no way out or already stepped aside 2N times this round, leaves the
@@ -389,5 +391,48 @@ mod tests {
             grab.positions[2],
             params.child_radius_m
         ));
+    }
+
+    #[test]
+    fn a_round_ends_when_a_child_is_idle_while_another_still_walks() {
+        // Child 1's walk is one step, child 2's four. Grabs are not checked here, so no
+        // child waits: after the first timestep child 1 is done and the round ends with child
+        // 2 on its second vertex, for the caller to re-plan the rest.
+        let rows = [
+            "..........",
+            "..k...k...",
+            "..........",
+            "..........",
+            "P.........",
+            "..........",
+            "..........",
+        ];
+        let map = Map::from_text(&rows, 0.5);
+        let params = CoverageParams {
+            children: 2,
+            views: ViewRule::StartPoints,
+            ..CoverageParams::default()
+        };
+        let vis = Visibility::compute(&map, &params);
+        let mut run = run_on(&map, &params, &vis, &rows);
+        let at = |c: i64, r: i64| map.at(c, r).unwrap();
+        assert_eq!(
+            (run.pos[1], run.pos[2]),
+            (at(2, 5), at(6, 5)),
+            "text row 1 is r = 5"
+        );
+        let short = vec![at(2, 5), at(2, 4)];
+        let long: Vec<Vertex> = (1..=5).rev().map(|r| at(6, r)).collect();
+        let set: Vec<Vertex> = short[1..].iter().chain(&long[1..]).copied().collect();
+        let frames_before = run.frames.len();
+        let mut imaged = Vec::new();
+        run.walk_roadmaps(vec![short, long], &set, &mut imaged);
+        assert_eq!(run.frames.len(), frames_before + 1, "one timestep");
+        assert_eq!(imaged, vec![at(2, 4), at(6, 4)]);
+        assert_eq!((run.pos[1], run.pos[2]), (at(2, 4), at(6, 4)));
+        // The rest of child 2's walk is left for the next round's roadmaps.
+        assert!([at(6, 3), at(6, 2), at(6, 1)]
+            .iter()
+            .all(|&v| !run.imaged[v]));
     }
 }

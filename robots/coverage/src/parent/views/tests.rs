@@ -233,15 +233,15 @@ fn a_child_in_view_on_its_vertex_too_is_counted_not_driven() {
 }
 
 #[test]
-fn the_parent_in_view_is_counted_and_never_driven() {
+fn the_parent_in_view_is_counted() {
     let mut p = planned_parent();
     let (grabber, _, ahead) = a_grab_with_a_free_vertex_ahead(&mut p);
     let grabs = p.plan.as_ref().unwrap().frames[p.step_index].grabs.clone();
     let from = p.children[grabber].estimate;
     // Where the plan has it, the parent is out of every grabbing child's view.
     assert_eq!(p.views_to_clear(&grabs), (vec![], 0));
-    // The parent 1 m straight ahead of the grabbing child is counted; the children are
-    // where the plan has them, so nobody is driven.
+    // The parent 1 m straight ahead of the grabbing child is counted (the children are
+    // where the plan has them).
     let put_parent = |p: &mut ParentStack, at: [f64; 2]| {
         p.pose = Some(pose_from_xyz_rpy([at[0], at[1], 0.0], [0.0; 3]));
     };
