@@ -64,15 +64,18 @@ fn boxes(cells: &[&SummaryCell], children_axis: usize) -> Vec<StackedBox> {
     v
 }
 
+/// The cell with the least mean of `stat`.
+fn least<'a>(cells: &[&'a SummaryCell], stat: &str) -> Option<&'a SummaryCell> {
+    cells
+        .iter()
+        .copied()
+        .min_by(|a, b| a.stat(stat).mean.total_cmp(&b.stat(stat).mean))
+}
+
 /// The number of children (the value on `children_axis`) with the least mean total
 /// timesteps.
 fn best_team(cells: &[&SummaryCell], children_axis: usize) -> usize {
-    cells
-        .iter()
-        .min_by(|a, b| {
-            let t = |c: &SummaryCell| c.stat("total_timesteps").mean;
-            t(a).total_cmp(&t(b))
-        })
+    least(cells, "total_timesteps")
         .and_then(|c| c.values[children_axis].parse().ok())
         .unwrap_or(0)
 }
@@ -80,13 +83,7 @@ fn best_team(cells: &[&SummaryCell], children_axis: usize) -> usize {
 /// The number of children (the value on `children_axis`) with the fewest mean mapping
 /// timesteps: where adding children stops making the mapping faster.
 fn fastest_mapping(cells: &[&SummaryCell], children_axis: usize) -> String {
-    cells
-        .iter()
-        .min_by(|a, b| {
-            let m = |c: &SummaryCell| c.stat("mapping_timesteps").mean;
-            m(a).total_cmp(&m(b))
-        })
-        .map_or_else(String::new, |c| c.values[children_axis].clone())
+    least(cells, "mapping_timesteps").map_or_else(String::new, |c| c.values[children_axis].clone())
 }
 
 /// The best team, with the others whose mean total is within 1 % of its own in brackets
