@@ -60,6 +60,7 @@ use hetsim_msgs::{
 use hetsim_pilot::{GroundPilot, GroundPilotParams};
 
 mod handover;
+mod odometry;
 mod sense;
 mod steps;
 mod teleop;
@@ -170,6 +171,8 @@ struct Child {
     sent_ns: u64,
     task: Task,
     path: Vec<(u64, [f64; 2])>,
+    /// The encoders' calibration against the tracks (`parent/odometry.rs`).
+    odometry: odometry::Calibration,
 }
 
 /// The parent's software.
@@ -290,6 +293,7 @@ impl ParentStack {
                 sent_ns: 0,
                 task: Task::Idle,
                 path: Vec::new(),
+                odometry: odometry::Calibration::default(),
             })
             .collect();
         Self {
@@ -456,6 +460,8 @@ impl ParentStack {
             path: h.path.clone(),
             over_ns: h.over_ns,
             timed_out: h.timed_out,
+            odometry_scale: self.children[h.child].odometry.scale(),
+            odometry_samples: self.children[h.child].odometry.samples(),
         });
         r
     }

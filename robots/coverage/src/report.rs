@@ -74,4 +74,9 @@ pub struct TourReport {
     pub over_ns: Option<u64>,
     /// The parent gave up: no report within a minute per move.
     pub timed_out: bool,
+    /// The encoders' scale the child was sent (metres travelled per metre counted; 1:
+    /// uncalibrated), and the hops it rests on (`parent/odometry.rs`).
+    pub odometry_scale: f64,
+    /// See `odometry_scale`.
+    pub odometry_samples: usize,
 }

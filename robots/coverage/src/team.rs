@@ -5,7 +5,8 @@
 //! wheel encoders. The parent tracks them and sends **orders**; a child
 //! * **drives**: rotates by compass towards a heading, then drives straight at the mission's
 //!   speed (0.15 m/s in the seed), holding the heading by compass, for a distance measured by
-//!   its encoders, and stops (also when its encoders stall: less than 1 cm in two seconds);
+//!   its encoders, and stops (also when its encoders stall: less than 1 cm in two seconds),
+//!   reporting the distance once it stands, the roll to a stop included;
 //! * **grabs**: rotates by compass to the direction of mapping, lets the robot settle, takes
 //!   the next camera image and sends it with the vertex id;
 //! * **stops**.
@@ -85,6 +86,10 @@ pub enum TeamMsg {
         heading_rad: f64,
         /// The image.
         image: Image,
+        /// The encoders' odometer when the image was taken: all the distance they have
+        /// counted since the start, metres (turns on the spot add about nothing). The parent
+        /// calibrates the encoders against its tracks with it (`parent/odometry.rs`).
+        odometer_m: f64,
     },
     /// Parent to child, after mapping: the database by radio, and a new path to localize
     /// along on its own (see `team/tour.rs`).
@@ -100,6 +105,10 @@ pub enum TeamMsg {
         path: Vec<[f64; 2]>,
         /// The direction of mapping, radians: every image faces it.
         heading_rad: f64,
+        /// Metres travelled per metre the encoders count, as the parent measured it while it
+        /// tracked this child (1 where it could not): the child's encoder distances on the
+        /// run are scaled by it.
+        odometry_scale: f64,
     },
     /// Parent to child: is the run of [`TeamMsg::Localize`] `seq` over? (Answered, like a
     /// repeated message, with the acknowledgement and the report if there is one.)
@@ -166,6 +175,13 @@ enum Phase {
         /// Encoder distance and time at the last check for a stall.
         progress: (f64, u64),
     },
+    /// The drive's distance is counted, the wheels are told to stop: the robot rolls on a
+    /// little, and the encoders count on until it stands.
+    Stopping {
+        driven_m: f64,
+        headings: (f64, f64),
+        since_ns: u64,
+    },
     Settling {
         since_ns: u64,
         vertex: (usize, usize),
@@ -188,6 +204,11 @@ pub struct ChildStack {
     reply: Option<TeamMsg>,
     /// The localization run after mapping, once the database has come.
     tour: Option<tour::Tour>,
+    /// All the distance the encoders have counted, metres.
+    odometer_m: f64,
+    /// Metres travelled per metre the encoders count: 1 until the database's message brings
+    /// the parent's calibration.
+    odometry_scale: f64,
     outbox: Vec<Outgoing>,
     status: StackStatus,
 }
@@ -210,6 +231,8 @@ impl ChildStack {
             fresh_heading: false,
             reply: None,
             tour: None,
+            odometer_m: 0.0,
+            odometry_scale: 1.0,
             outbox: Vec::new(),
             status: StackStatus::default(),
         }
@@ -308,19 +331,26 @@ impl ChildStack {
     pub fn command(&mut self, now_ns: u64, inbox: &[SensorMsg]) -> Command {
         let mut image: Option<&Image> = None;
         let mut driven = 0.0;
+        // An encoder reading came (a step without one has counted nothing, not stood).
+        let mut counted = false;
         for msg in inbox {
             match msg {
                 SensorMsg::Compass(c) => {
                     self.heading = Some(c.heading_rad);
                     self.fresh_heading = true;
                     match &mut self.phase {
-                        Phase::Driving { headings, .. } | Phase::Settling { headings, .. } => {
+                        Phase::Driving { headings, .. }
+                        | Phase::Stopping { headings, .. }
+                        | Phase::Settling { headings, .. } => {
                             *headings = accumulate(*headings, c.heading_rad);
                         }
                         _ => {}
                     }
                 }
-                SensorMsg::WheelOdometry(o) => driven += (o.left_m + o.right_m) / 2.0,
+                SensorMsg::WheelOdometry(o) => {
+                    driven += (o.left_m + o.right_m) / 2.0;
+                    counted = true;
+                }
                 SensorMsg::Comms(d) if d.from == self.parent => match TeamMsg::decode(d) {
                     Some(TeamMsg::Order { seq, order }) => self.obey(seq, order),
                     Some(TeamMsg::Localize {
@@ -329,7 +359,9 @@ impl ChildStack {
                         places,
                         path,
                         heading_rad,
+                        odometry_scale,
                     }) if self.accept(seq) => {
+                        self.odometry_scale = odometry_scale;
                         let tour =
                             tour::Tour::new(seq, grid, places, path, heading_rad, self.params.seed);
                         self.phase = tour.first();
@@ -344,6 +376,9 @@ impl ChildStack {
                 _ => {}
             }
         }
+        self.odometer_m += driven;
+        // Calibrated (on the localization run), the encoders' distance is scaled.
+        let driven = driven * self.odometry_scale;
         let seq = self.seq.unwrap_or(0);
         match self.phase.clone() {
             Phase::Idle => Command::Stop,
@@ -401,16 +436,11 @@ impl ChildStack {
                     false
                 };
                 if remaining <= 0.0 || stalled {
-                    let heading = headings.1.atan2(headings.0);
-                    self.finish(TeamMsg::Done {
-                        seq,
+                    self.phase = Phase::Stopping {
                         driven_m,
-                        heading_rad: if headings == (0.0, 0.0) {
-                            self.heading.unwrap_or(0.0)
-                        } else {
-                            heading
-                        },
-                    });
+                        headings,
+                        since_ns: now_ns,
+                    };
                     return Command::Stop;
                 }
                 self.phase = Phase::Driving {
@@ -426,6 +456,36 @@ impl ChildStack {
                     .heading
                     .map_or(0.0, |h| (1.0 * wrap_angle(target - h)).clamp(-0.3, 0.3));
                 self.wheels(self.params.speed_mps, hold)
+            }
+            Phase::Stopping {
+                driven_m,
+                headings,
+                since_ns,
+            } => {
+                // The drive is reported with what the encoders counted while it rolled to a
+                // stop (about 1 cm at 0.15 m/s): dead reckoning from the report, the parent's
+                // out of view and the child's own on its run, is not short by that on every
+                // drive. Standing: an encoder reading of under a millimetre, or a second on.
+                let driven_m = driven_m + driven;
+                let heading = if headings == (0.0, 0.0) {
+                    self.heading.unwrap_or(0.0)
+                } else {
+                    headings.1.atan2(headings.0)
+                };
+                if (counted && driven.abs() < 0.001) || now_ns >= since_ns + 1_000_000_000 {
+                    self.finish(TeamMsg::Done {
+                        seq,
+                        driven_m,
+                        heading_rad: heading,
+                    });
+                } else {
+                    self.phase = Phase::Stopping {
+                        driven_m,
+                        headings,
+                        since_ns,
+                    };
+                }
+                Command::Stop
             }
             Phase::Settling {
                 since_ns,
@@ -444,6 +504,7 @@ impl ChildStack {
                         vertex,
                         heading_rad: heading,
                         image: img.clone(),
+                        odometer_m: self.odometer_m,
                     });
                 }
                 Command::Stop

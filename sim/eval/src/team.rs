@@ -97,6 +97,12 @@ pub struct TeamMetrics {
     pub localized_min: Option<f64>,
     /// The parent gave up on the run: no report within a minute per move.
     pub localization_timed_out: bool,
+    /// The encoders' scale that child was sent, metres travelled per metre counted, as the
+    /// parent measured it from its tracks while mapping (1: too few hops seen), and the
+    /// number of hops.
+    pub localization_odometry_scale: Option<f64>,
+    /// See `localization_odometry_scale`.
+    pub localization_odometry_hops: Option<usize>,
     /// Database images with another robot in view farther than r_los (the seed's planner
     /// does not consider robots beyond r_los; a 1.5 m parent is visible across a room).
     pub images_with_distant_robot_in_view: usize,
@@ -342,6 +348,8 @@ impl TeamMetrics {
                 .and_then(|t| t.over_ns)
                 .map(|ns| ns as f64 / 60e9),
             localization_timed_out: r.tour.as_ref().is_some_and(|t| t.timed_out),
+            localization_odometry_scale: r.tour.as_ref().map(|t| t.odometry_scale),
+            localization_odometry_hops: r.tour.as_ref().map(|t| t.odometry_samples),
             parent_localization: ParentLocalization::of(output, &outcome.parent),
             tracking: Tracking::of(scenario, r, truth),
         }

@@ -36,15 +36,16 @@ pub(super) enum Delivery {
     /// Tried, and nothing sent: no run asked for, or none possible (no database, no child
     /// that can move).
     Nothing,
-    /// Sent to a child: the run is over when it reports, or at the deadline.
-    Sent(Handover),
+    /// Sent to a child: the run is over when it reports, or at the deadline (boxed: the
+    /// database message is large).
+    Sent(Box<Handover>),
 }
 
 impl Delivery {
     /// The run, if the database was sent.
     pub(super) fn sent(&self) -> Option<&Handover> {
         match self {
-            Self::Sent(h) => Some(h),
+            Self::Sent(h) => Some(h.as_ref()),
             _ => None,
         }
     }
@@ -83,7 +84,7 @@ impl ParentStack {
                     Some(h) => {
                         let name = &self.children[h.child].name;
                         self.outbox.push(h.msg.to(name));
-                        Delivery::Sent(h)
+                        Delivery::Sent(Box::new(h))
                     }
                     None => Delivery::Nothing,
                 };
@@ -174,6 +175,7 @@ impl ParentStack {
             places,
             path: waypoints,
             heading_rad,
+            odometry_scale: child.odometry.scale(),
         };
         Some(Handover {
             child: i,

@@ -137,14 +137,18 @@ impl ParentStack {
                 vertex,
                 heading_rad,
                 image,
+                odometer_m,
             } if s == seq => {
                 let Task::Grab { fixes, .. } = &self.children[i].task else {
                     return;
                 };
-                let estimated_xy = match *fixes {
-                    (_, 0) => self.children[i].estimate,
-                    (sum, n) => [sum[0] / n as f64, sum[1] / n as f64],
+                let seen = match *fixes {
+                    (_, 0) => None,
+                    (sum, n) => Some([sum[0] / n as f64, sum[1] / n as f64]),
                 };
+                let cell_m = self.mission.grid.cell_m;
+                self.children[i].odometry.rest(seen, odometer_m, cell_m);
+                let estimated_xy = seen.unwrap_or(self.children[i].estimate);
                 self.report.database.push(DatabaseImage {
                     vertex,
                     child: self.children[i].name.clone(),

@@ -107,9 +107,15 @@ fn a_drive_turns_by_compass_then_stops_after_the_encoder_distance() {
     };
     assert!((left_mps + right_mps - 0.3).abs() < 1e-12 && left_mps > right_mps);
     assert_eq!(step(&mut c, 4, &[odo(0.06)]), Command::Stop);
+    // Told to stop, it rolls on: counted, and reported once a reading shows it stands (a
+    // step with no reading is not standing).
+    assert_eq!(step(&mut c, 5, &[odo(0.008)]), Command::Stop);
+    assert_eq!(step(&mut c, 6, &[compass(1.01)]), Command::Stop);
+    assert!(replies(&mut c).is_empty(), "reported while rolling");
+    assert_eq!(step(&mut c, 7, &[odo(0.0002)]), Command::Stop);
     let r = replies(&mut c);
     assert!(
-        matches!(r[..], [TeamMsg::Done { seq: 1, driven_m, heading_rad }] if (driven_m - 0.31).abs() < 1e-9 && (heading_rad - 1.01).abs() < 1e-9),
+        matches!(r[..], [TeamMsg::Done { seq: 1, driven_m, heading_rad }] if (driven_m - 0.3182).abs() < 1e-9 && (heading_rad - 1.01).abs() < 1e-9),
         "{r:?}"
     );
     // The order again (the parent missed the reply): acknowledged and answered again,
@@ -117,7 +123,7 @@ fn a_drive_turns_by_compass_then_stops_after_the_encoder_distance() {
     assert_eq!(
         step(
             &mut c,
-            5,
+            8,
             &[order(
                 1,
                 Order::Drive {
@@ -132,7 +138,7 @@ fn a_drive_turns_by_compass_then_stops_after_the_encoder_distance() {
     // An older order is ignored.
     step(
         &mut c,
-        6,
+        9,
         &[order(
             0,
             Order::Drive {
@@ -218,13 +224,20 @@ fn a_grab_waits_for_an_image_taken_after_settling() {
     assert!(!c.status().wants_images);
 }
 
-/// The localization tests' synthetic room at a position, as an RGB camera image.
-/// After mapping, the database comes by radio with a path; the child drives it on its own
-/// (kinematics below, true compass, encoders of its own wheels, images of where it really
-/// is) and localizes: the run ends with `Localized`, and each feature's filter ends within
-/// one grid spacing of the truth, from particles spread over the whole room.
-#[test]
-fn a_child_sent_the_database_drives_its_path_and_localizes() {
+/// The localization run of [`a_child_sent_the_database_drives_its_path_and_localizes`]: the
+/// database and the path, from (0.25, 0.25) five cells east, then two north past the
+/// obstacle's east side (cells (3, 2) and (4, 2) are occupied); the child's encoders count
+/// `counts_per_m` per metre travelled, and the message brings it `odometry_scale`.
+struct TourRun {
+    c: ChildStack,
+    /// Where the robot really ended.
+    at: [f64; 2],
+    heard: Vec<TeamMsg>,
+    delivered: SensorMsg,
+    path: Vec<[f64; 2]>,
+}
+
+fn run_tour(odometry_scale: f64, counts_per_m: f64) -> TourRun {
     let grid = crate::localize::tests::grid();
     let places: Vec<([f64; 2], Features)> = (0..48)
         .filter(|i| !grid.occupied[*i])
@@ -237,8 +250,6 @@ fn a_child_sent_the_database_drives_its_path_and_localizes() {
             )
         })
         .collect();
-    // From (0.25, 0.25): five cells east, then two north past the obstacle's east side
-    // (cells (3, 2) and (4, 2) are occupied).
     let path: Vec<[f64; 2]> = [
         (0, 0),
         (1, 0),
@@ -259,6 +270,7 @@ fn a_child_sent_the_database_drives_its_path_and_localizes() {
         places,
         path: path.clone(),
         heading_rad: 0.0,
+        odometry_scale,
     }
     .to("child");
     let delivered = SensorMsg::Comms(Delivered {
@@ -290,8 +302,8 @@ fn a_child_sent_the_database_drives_its_path_and_localizes() {
             SensorMsg::WheelOdometry(WheelOdometry {
                 stamp_ns: now,
                 sensor: "e".into(),
-                left_m,
-                right_m,
+                left_m: left_m * counts_per_m,
+                right_m: right_m * counts_per_m,
             }),
         ];
         if tick == 0 {
@@ -314,6 +326,28 @@ fn a_child_sent_the_database_drives_its_path_and_localizes() {
             break;
         }
     }
+    TourRun {
+        c,
+        at: [x, y],
+        heard,
+        delivered,
+        path,
+    }
+}
+
+/// After mapping, the database comes by radio with a path; the child drives it on its own
+/// (kinematics below, true compass, encoders of its own wheels, images of where it really
+/// is) and localizes: the run ends with `Localized`, and each feature's filter ends within
+/// one grid spacing of the truth, from particles spread over the whole room.
+#[test]
+fn a_child_sent_the_database_drives_its_path_and_localizes() {
+    let TourRun {
+        mut c,
+        at: [x, y],
+        heard,
+        delivered,
+        path,
+    } = run_tour(1.0, 1.0);
     assert!(heard.contains(&TeamMsg::Ack { seq: 9 }), "{heard:?}");
     assert!(heard.contains(&TeamMsg::Localized { seq: 9 }), "never done");
     // It drove the path itself: within a few centimetres of its end (2.75, 1.25).
@@ -355,4 +389,23 @@ fn a_child_sent_the_database_drives_its_path_and_localizes() {
     step(&mut c, u64::MAX / 2, &[order(10, Order::Stop)]);
     assert_eq!(replies(&mut c), vec![TeamMsg::Ack { seq: 10 }]);
     assert_eq!(c.artifacts().len(), Feature::ALL.len());
+}
+
+/// Encoders that count 6 % more than the robot travels leave the uncalibrated child short
+/// of its path's end by about 6 % of the 3.5 m path (0.2 m; its own localization takes over
+/// only beyond 0.3 m); sent the parent's calibration, it ends as close as with true
+/// encoders (the bound of the test above).
+#[test]
+fn a_calibrated_child_drives_its_path_with_encoders_that_overcount() {
+    let gain = 1.06;
+    let off = |r: &TourRun| (r.at[0] - 2.75).hypot(r.at[1] - 1.25);
+    let blind = run_tour(1.0, gain);
+    assert!(off(&blind) > 0.12, "uncalibrated, {:.3} m off", off(&blind));
+    let calibrated = run_tour(1.0 / gain, gain);
+    assert!(
+        off(&calibrated) < 0.1,
+        "calibrated, {:.3} m off",
+        off(&calibrated)
+    );
+    assert!(calibrated.heard.contains(&TeamMsg::Localized { seq: 9 }));
 }

@@ -218,3 +218,44 @@ fn the_walk_never_steps_onto_the_parent() {
         assert!(!path.contains(&parent), "seed {seed}: {path:?}");
     }
 }
+
+/// The database's message carries the encoders' scale measured from the images the parent
+/// saw the child take (`parent/odometry.rs`): uncalibrated (1) with no hop seen, the hops'
+/// scale once enough were seen, in the message and in the report.
+#[test]
+fn the_database_carries_the_encoders_scale_from_the_hops_seen() {
+    let scale_sent = |p: &mut ParentStack| match &at(p, 10 * S)[..] {
+        [TeamMsg::Localize { odometry_scale, .. }] => *odometry_scale,
+        other => panic!("the database first, got {other:?}"),
+    };
+    assert_eq!(scale_sent(&mut mapped_parent()), 1.0, "no hop seen");
+
+    let mut p = mapped_parent();
+    // Six hops east along row 0 and back, seen at each image, the encoders counting
+    // 1 / 0.96 of each 0.5 m.
+    let xs = [0.25, 0.75, 1.25, 1.75, 1.25, 0.75, 0.25];
+    for (k, x) in xs.iter().enumerate() {
+        p.children[0].seq += 1;
+        let seq = p.children[0].seq;
+        p.children[0].task = super::super::Task::Grab {
+            vertex: (0, 0),
+            sent_ns: 0,
+            fixes: ([2.0 * x, 0.5], 2),
+        };
+        let image = crate::localize::tests::room_view(S, *x, 0.25);
+        p.handle_reply(
+            0,
+            TeamMsg::Grabbed {
+                seq,
+                vertex: (0, 0),
+                heading_rad: 0.0,
+                image,
+                odometer_m: k as f64 * 0.5 / 0.96,
+            },
+        );
+    }
+    assert!((scale_sent(&mut p) - 0.96).abs() < 1e-9);
+    let tour = p.team_report().tour.expect("sent");
+    assert_eq!(tour.odometry_samples, 6);
+    assert!((tour.odometry_scale - 0.96).abs() < 1e-9);
+}
