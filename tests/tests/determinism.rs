@@ -137,6 +137,12 @@ fn run_writes_manifest_truth_and_metrics_in_the_promised_formats() {
     assert_eq!(manifest["digest"], digest.as_str());
     assert_eq!(manifest["seed"], 1);
     assert!(manifest["hetsim_version"].is_string());
+    // Which build made it: the executable's SHA-256, 64 hex digits.
+    let build = manifest["build_sha256"].as_str().unwrap();
+    assert!(
+        build.len() == 64 && build.bytes().all(|b| b.is_ascii_hexdigit()),
+        "{build}"
+    );
     let hashes = manifest["files_sha256"].as_object().unwrap();
     assert_eq!(
         hashes.len(),

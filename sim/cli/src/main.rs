@@ -93,7 +93,8 @@ enum Cmd {
         adapter: Option<String>,
     },
     /// Localization from coverage-mission image databases (seed 002, Section V.B): runs the
-    /// scenario's mission for seeds 1..=N (reusing runs already in the output folder),
+    /// scenario's mission for seeds 1..=N (reusing runs this build already made in the output
+    /// folder; a run of another build is made again),
     /// cross-validates their databases (WGOH and pixelwise), and gathers the particle filter
     /// runs of the child each mission sent on a new path after mapping (`[coverage]
     /// localize_steps`). Writes localization.json, .md and .png.

@@ -253,6 +253,22 @@ fn whole_run(
     sweep::metrics_of_run(sweep, run, dir)
 }
 
+/// Which build made the run in `dir`: its manifest's `build_sha256` (an empty string for a
+/// run from before manifests named it); `None` where there is no finished run.
+fn built_by(dir: &Path) -> Result<Option<String>> {
+    let path = dir.join("manifest.json");
+    if !path.is_file() {
+        return Ok(None);
+    }
+    let manifest: serde_json::Value = serde_json::from_slice(
+        &std::fs::read(&path).with_context(|| format!("{}", path.display()))?,
+    )
+    .with_context(|| format!("{}: not a run's manifest", path.display()))?;
+    Ok(Some(
+        manifest["build_sha256"].as_str().unwrap_or("").to_string(),
+    ))
+}
+
 /// `hetsim localize`: mapping runs, cross-validation, and each run's child localizing on its
 /// own path after mapping (in lockstep).
 pub fn localize(
@@ -281,10 +297,25 @@ pub fn localize(
     let mut missions = Vec::new();
     for seed in 1..=seeds {
         let dir = out.join(format!("runs/seed-{seed}"));
-        if dir.join("manifest.json").is_file() {
-            eprintln!("seed {seed}: reusing {}", dir.display());
+        let made_by = built_by(&dir)?;
+        if made_by.as_deref() == Some(hetsim_eval::results::build_sha256()) {
+            eprintln!(
+                "seed {seed}: reusing {} (made by this build)",
+                dir.display()
+            );
         } else {
-            eprintln!("seed {seed}: running the mission");
+            match made_by {
+                Some(other) if other.is_empty() => eprintln!(
+                    "seed {seed}: {} was made by a hetsim that did not record its build; running the mission again",
+                    dir.display()
+                ),
+                Some(other) => eprintln!(
+                    "seed {seed}: {} was made by another build of hetsim (build_sha256 {}); running the mission again",
+                    dir.display(),
+                    &other[..other.len().min(12)]
+                ),
+                None => eprintln!("seed {seed}: running the mission"),
+            }
             let loaded = load_scenario(
                 scenario,
                 &LoadOptions {
@@ -349,4 +380,34 @@ pub fn localize(
     println!("{md}");
     println!("results: {}", out.display());
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::built_by;
+
+    /// A seed's folder is reused only when this build made it: no run, a run without a
+    /// recorded build, and one of another build are told apart; a manifest that is not JSON
+    /// is an error naming it.
+    #[test]
+    fn a_run_tells_which_build_made_it() {
+        let dir = tempfile::tempdir().unwrap();
+        let run = dir.path().join("seed-1");
+        assert_eq!(built_by(&run).unwrap(), None, "no run yet");
+        std::fs::create_dir_all(&run).unwrap();
+        let write = |text: &str| std::fs::write(run.join("manifest.json"), text).unwrap();
+        write(r#"{"digest": "ab"}"#);
+        assert_eq!(
+            built_by(&run).unwrap().as_deref(),
+            Some(""),
+            "no build recorded"
+        );
+        let this = hetsim_eval::results::build_sha256();
+        assert_eq!(this.len(), 64, "{this}");
+        write(&format!(r#"{{"build_sha256": "{this}"}}"#));
+        assert_eq!(built_by(&run).unwrap().as_deref(), Some(this));
+        write("{");
+        let err = format!("{:#}", built_by(&run).unwrap_err());
+        assert!(err.contains("manifest.json"), "{err}");
+    }
 }
