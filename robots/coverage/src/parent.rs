@@ -460,8 +460,8 @@ impl ParentStack {
             path: h.path.clone(),
             over_ns: h.over_ns,
             timed_out: h.timed_out,
-            odometry_scale: self.children[h.child].odometry.scale(),
-            odometry_samples: self.children[h.child].odometry.samples(),
+            odometry_scale: h.odometry_scale,
+            odometry_hops: self.children[h.child].odometry.hops().to_vec(),
         });
         r
     }

@@ -75,8 +75,22 @@ pub struct TourReport {
     /// The parent gave up: no report within a minute per move.
     pub timed_out: bool,
     /// The encoders' scale the child was sent (metres travelled per metre counted; 1:
-    /// uncalibrated), and the hops it rests on (`parent/odometry.rs`).
+    /// uncalibrated; `parent/odometry.rs`).
     pub odometry_scale: f64,
-    /// See `odometry_scale`.
-    pub odometry_samples: usize,
+    /// The hops it rests on.
+    pub odometry_hops: Vec<OdometryHop>,
+}
+
+/// One hop of a child between two images the parent saw it take: the encoders' calibration
+/// sample (`parent/odometry.rs`).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct OdometryHop {
+    /// The first image's stamp, nanoseconds.
+    pub from_ns: u64,
+    /// The second image's stamp, nanoseconds.
+    pub to_ns: u64,
+    /// The straight distance between where the parent saw the child take them, metres.
+    pub seen_m: f64,
+    /// What the child's encoders counted between them, metres.
+    pub counted_m: f64,
 }

@@ -71,7 +71,8 @@ pub enum TeamMsg {
     Done {
         /// The order's sequence number.
         seq: u32,
-        /// Distance driven by the encoders, metres.
+        /// Distance driven by the encoders, metres: the roll to a stop included, scaled by
+        /// the encoders' calibration once the child has one (its run after mapping).
         driven_m: f64,
         /// The compass heading while driving (mean of the readings), radians.
         heading_rad: f64,
@@ -206,6 +207,8 @@ pub struct ChildStack {
     tour: Option<tour::Tour>,
     /// All the distance the encoders have counted, metres.
     odometer_m: f64,
+    /// The last encoder reading's stamp.
+    odometry_ns: Option<u64>,
     /// Metres travelled per metre the encoders count: 1 until the database's message brings
     /// the parent's calibration.
     odometry_scale: f64,
@@ -232,6 +235,7 @@ impl ChildStack {
             reply: None,
             tour: None,
             odometer_m: 0.0,
+            odometry_ns: None,
             odometry_scale: 1.0,
             outbox: Vec::new(),
             status: StackStatus::default(),
@@ -331,8 +335,9 @@ impl ChildStack {
     pub fn command(&mut self, now_ns: u64, inbox: &[SensorMsg]) -> Command {
         let mut image: Option<&Image> = None;
         let mut driven = 0.0;
-        // An encoder reading came (a step without one has counted nothing, not stood).
-        let mut counted = false;
+        // The time the step's encoder readings span (none: it has counted nothing, which is
+        // not standing).
+        let mut counted_ns = 0u64;
         for msg in inbox {
             match msg {
                 SensorMsg::Compass(c) => {
@@ -349,7 +354,10 @@ impl ChildStack {
                 }
                 SensorMsg::WheelOdometry(o) => {
                     driven += (o.left_m + o.right_m) / 2.0;
-                    counted = true;
+                    if let Some(t0) = self.odometry_ns {
+                        counted_ns += o.stamp_ns.saturating_sub(t0);
+                    }
+                    self.odometry_ns = Some(o.stamp_ns);
                 }
                 SensorMsg::Comms(d) if d.from == self.parent => match TeamMsg::decode(d) {
                     Some(TeamMsg::Order { seq, order }) => self.obey(seq, order),
@@ -361,7 +369,13 @@ impl ChildStack {
                         heading_rad,
                         odometry_scale,
                     }) if self.accept(seq) => {
-                        self.odometry_scale = odometry_scale;
+                        // A scale over 20 % off is no wheel's slip or encoders' error (a
+                        // c't-Bot's: 2 % and a 2 % sigma): a bad measurement, not used.
+                        self.odometry_scale = if (0.8..=1.25).contains(&odometry_scale) {
+                            odometry_scale
+                        } else {
+                            1.0
+                        };
                         let tour =
                             tour::Tour::new(seq, grid, places, path, heading_rad, self.params.seed);
                         self.phase = tour.first();
@@ -377,7 +391,7 @@ impl ChildStack {
             }
         }
         self.odometer_m += driven;
-        // Calibrated (on the localization run), the encoders' distance is scaled.
+        // Calibrated (from the database's message on), the encoders' distance is scaled.
         let driven = driven * self.odometry_scale;
         let seq = self.seq.unwrap_or(0);
         match self.phase.clone() {
@@ -463,16 +477,18 @@ impl ChildStack {
                 since_ns,
             } => {
                 // The drive is reported with what the encoders counted while it rolled to a
-                // stop (about 1 cm at 0.15 m/s): dead reckoning from the report, the parent's
+                // stop (about 7 mm at 0.15 m/s): dead reckoning from the report, the parent's
                 // out of view and the child's own on its run, is not short by that on every
-                // drive. Standing: an encoder reading of under a millimetre, or a second on.
+                // drive. Standing: encoder readings of under 1 cm/s (at the c't-Bot's 10 Hz,
+                // the second or third reading after the stop), or a second on.
                 let driven_m = driven_m + driven;
                 let heading = if headings == (0.0, 0.0) {
                     self.heading.unwrap_or(0.0)
                 } else {
                     headings.1.atan2(headings.0)
                 };
-                if (counted && driven.abs() < 0.001) || now_ns >= since_ns + 1_000_000_000 {
+                let standing = counted_ns > 0 && driven.abs() < 0.01 * counted_ns as f64 / 1e9;
+                if standing || now_ns >= since_ns + 1_000_000_000 {
                     self.finish(TeamMsg::Done {
                         seq,
                         driven_m,

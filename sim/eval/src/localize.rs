@@ -273,6 +273,9 @@ pub struct Summary {
     pub localization_timed_out: usize,
     /// Earliest and latest sim time at which a report came, minutes.
     pub localized_min_range: Option<[f64; 2]>,
+    /// The encoders' scale each localizing child was sent, and the same hops on the truth
+    /// (`TeamMetrics::localization_odometry_scale`, `_true`), per run that has both.
+    pub odometry_scales: Vec<[f64; 2]>,
 }
 
 /// The particle filter's results over several paths, for one feature.
@@ -356,6 +359,15 @@ pub fn summarize(
                 reported.iter().copied().fold(f64::NEG_INFINITY, f64::max),
             ]
         }),
+        odometry_scales: missions
+            .iter()
+            .filter_map(|m| {
+                Some([
+                    m["localization_odometry_scale"].as_f64()?,
+                    m["localization_odometry_scale_true"].as_f64()?,
+                ])
+            })
+            .collect(),
         runs: missions.len(),
         finished: missions
             .iter()
@@ -421,6 +433,22 @@ pub fn markdown(s: &Summary) -> String {
             .map_or("-".into(), |[a, b]| format!("{a:.1}-{b:.1}")),
         s.localization_timed_out
     );
+    if !s.odometry_scales.is_empty() {
+        let range = |k: usize| {
+            let v = s.odometry_scales.iter().map(|p| p[k]);
+            let (lo, hi) = v.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), x| {
+                (a.min(x), b.max(x))
+            });
+            format!("{lo:.3}-{hi:.3}")
+        };
+        let off: Vec<f64> = s.odometry_scales.iter().map(|p| p[0] - p[1]).collect();
+        t += &format!(
+            "| encoders' scale sent to the localizing child (same hops on the truth; sent minus truth) | {} ({}; {}) | - |\n",
+            range(0),
+            range(1),
+            ms(&MeanStd::population(&off), "")
+        );
+    }
     // The worst path beside the mean: a mean can hide one that never converged.
     for p in &s.particle_filter {
         let largest = p

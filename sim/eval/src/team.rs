@@ -98,11 +98,14 @@ pub struct TeamMetrics {
     /// The parent gave up on the run: no report within a minute per move.
     pub localization_timed_out: bool,
     /// The encoders' scale that child was sent, metres travelled per metre counted, as the
-    /// parent measured it from its tracks while mapping (1: too few hops seen), and the
-    /// number of hops.
+    /// parent measured it from its tracks while mapping (1: too few hops seen).
     pub localization_odometry_scale: Option<f64>,
-    /// See `localization_odometry_scale`.
+    /// The hops between two images the parent saw it take that the scale rests on.
     pub localization_odometry_hops: Option<usize>,
+    /// The same hops measured on the child's true positions at the images' stamps: their
+    /// median of true straight distance over counted distance. Its difference from the scale
+    /// sent is the tracker's share of the calibration's error (absent with no hops).
+    pub localization_odometry_scale_true: Option<f64>,
     /// Database images with another robot in view farther than r_los (the seed's planner
     /// does not consider robots beyond r_los; a 1.5 m parent is visible across a room).
     pub images_with_distant_robot_in_view: usize,
@@ -349,7 +352,17 @@ impl TeamMetrics {
                 .map(|ns| ns as f64 / 60e9),
             localization_timed_out: r.tour.as_ref().is_some_and(|t| t.timed_out),
             localization_odometry_scale: r.tour.as_ref().map(|t| t.odometry_scale),
-            localization_odometry_hops: r.tour.as_ref().map(|t| t.odometry_samples),
+            localization_odometry_hops: r.tour.as_ref().map(|t| t.odometry_hops.len()),
+            localization_odometry_scale_true: r.tour.as_ref().and_then(|t| {
+                let truth = output.truth_of(&t.child).filter(|tr| !tr.is_empty())?;
+                let at = |ns: u64| truth_at(truth, ns).translation.vector;
+                median(
+                    t.odometry_hops
+                        .iter()
+                        .map(|h| (at(h.to_ns) - at(h.from_ns)).xy().norm() / h.counted_m)
+                        .collect(),
+                )
+            }),
             parent_localization: ParentLocalization::of(output, &outcome.parent),
             tracking: Tracking::of(scenario, r, truth),
         }
@@ -454,4 +467,19 @@ pub fn files(
         crate::charts::coverage_map_png(grid, &mission),
     ));
     out
+}
+
+/// The median of `v`, the middle two's mean for an even count (`None` when empty): as the
+/// parent takes it for the encoders' scale.
+fn median(mut v: Vec<f64>) -> Option<f64> {
+    if v.is_empty() {
+        return None;
+    }
+    v.sort_by(f64::total_cmp);
+    let n = v.len();
+    Some(if n % 2 == 1 {
+        v[n / 2]
+    } else {
+        (v[n / 2 - 1] + v[n / 2]) / 2.0
+    })
 }

@@ -69,6 +69,8 @@ pub(super) struct Handover {
     deadline_ns: u64,
     /// The path's vertices, `(col, row)`, the child's own first.
     pub(super) path: Vec<(usize, usize)>,
+    /// The encoders' scale sent with the database.
+    pub(super) odometry_scale: f64,
 }
 
 impl ParentStack {
@@ -164,6 +166,7 @@ impl ParentStack {
         let mut waypoints: Vec<[f64; 2]> = path.iter().map(|v| self.centre(*v)).collect();
         waypoints[0] = self.children[i].estimate;
         let child = &mut self.children[i];
+        let odometry_scale = child.odometry.scale();
         child.seq += 1;
         let heading_rad = {
             let (x, y) = self.coverage.direction.unit();
@@ -175,7 +178,7 @@ impl ParentStack {
             places,
             path: waypoints,
             heading_rad,
-            odometry_scale: child.odometry.scale(),
+            odometry_scale,
         };
         Some(Handover {
             child: i,
@@ -187,6 +190,7 @@ impl ParentStack {
             timed_out: false,
             deadline_ns: self.now_ns + 60_000_000_000 * (path.len() - 1) as u64,
             path: path.iter().map(|v| self.map.cell(*v)).collect(),
+            odometry_scale,
         })
     }
 

@@ -147,7 +147,10 @@ impl ParentStack {
                     (sum, n) => Some([sum[0] / n as f64, sum[1] / n as f64]),
                 };
                 let cell_m = self.mission.grid.cell_m;
-                self.children[i].odometry.rest(seen, odometer_m, cell_m);
+                let stamp_ns = image.stamp_ns;
+                self.children[i]
+                    .odometry
+                    .rest(seen, stamp_ns, odometer_m, cell_m);
                 let estimated_xy = seen.unwrap_or(self.children[i].estimate);
                 self.report.database.push(DatabaseImage {
                     vertex,

@@ -28,12 +28,12 @@
 //! counts the roll to a stop after the wheels are told to stop. Measured on the lab's seed 5,
 //! whose child1's encoders count about 4 % more than it travels: uncalibrated, it ended
 //! each westward move up to 2.5 cm short, was 0.15-0.19 m east of its path after twelve
-//! moves and scraped a desk (28 contact starts); calibrated (scale 0.95 from 16 hops), it
-//! stayed within 0.13 m, and counting the roll too, within 0.08 m, both with 0 contacts
-//! (one run each, positions where it stood to image). What is left comes from the scale's
-//! own bias: the hat tracker places children about 0.7 % too close to the parent's camera,
-//! and a hop's path is about 0.6 % longer than straight, so the scale comes out about
-//! 1.3 % low.
+//! moves and scraped the work desk (28 contact starts); calibrated (scale 0.95 from 16
+//! hops), it stayed within 0.13 m, and counting the roll too, within 0.08 m, both with 0
+//! contacts (one run each, positions where it stood to image). Part of what is left is the
+//! scale's own bias (the hat tracker places children about 0.9 % too close to the parent's
+//! camera, and a hop's path is about 0.6 % longer than straight: the scale comes out 1-1.5 %
+//! low); the rest, from the compass's noise and the start's estimate, is not measured apart.
 
 use super::{Phase, TeamMsg};
 use crate::localize::{ParticleFilter, PfParams, Place};

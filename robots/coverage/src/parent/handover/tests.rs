@@ -242,7 +242,7 @@ fn the_database_carries_the_encoders_scale_from_the_hops_seen() {
             sent_ns: 0,
             fixes: ([2.0 * x, 0.5], 2),
         };
-        let image = crate::localize::tests::room_view(S, *x, 0.25);
+        let image = crate::localize::tests::room_view(k as u64 * S, *x, 0.25);
         p.handle_reply(
             0,
             TeamMsg::Grabbed {
@@ -256,6 +256,6 @@ fn the_database_carries_the_encoders_scale_from_the_hops_seen() {
     }
     assert!((scale_sent(&mut p) - 0.96).abs() < 1e-9);
     let tour = p.team_report().tour.expect("sent");
-    assert_eq!(tour.odometry_samples, 6);
+    assert_eq!(tour.odometry_hops.len(), 6);
     assert!((tour.odometry_scale - 0.96).abs() < 1e-9);
 }
