@@ -429,6 +429,11 @@ fn lab_outputs(out: &Path) {
     let scale = t["localization_odometry_scale"].as_f64().unwrap();
     assert!((0.92..1.03).contains(&scale), "{scale}");
     let truth = t["localization_odometry_scale_true"].as_f64().unwrap();
+    // And it must beat no calibration: at most half as far from the truth as 1 is.
+    assert!(
+        (scale - truth).abs() < (1.0 - truth).abs() / 2.0,
+        "sent {scale}, on the truth {truth}"
+    );
     assert!(
         (scale - truth).abs() < 0.055,
         "sent {scale}, on the truth {truth}"

@@ -357,7 +357,8 @@ impl ChildStack {
                     if let Some(t0) = self.odometry_ns {
                         counted_ns += o.stamp_ns.saturating_sub(t0);
                     }
-                    self.odometry_ns = Some(o.stamp_ns);
+                    self.odometry_ns =
+                        Some(self.odometry_ns.map_or(o.stamp_ns, |t| t.max(o.stamp_ns)));
                 }
                 SensorMsg::Comms(d) if d.from == self.parent => match TeamMsg::decode(d) {
                     Some(TeamMsg::Order { seq, order }) => self.obey(seq, order),
@@ -369,8 +370,9 @@ impl ChildStack {
                         heading_rad,
                         odometry_scale,
                     }) if self.accept(seq) => {
-                        // A scale over 20 % off is no wheel's slip or encoders' error (a
-                        // c't-Bot's: 2 % and a 2 % sigma): a bad measurement, not used.
+                        // A scale under 0.8 or over 1.25 is no wheel's slip or encoders'
+                        // error (a c't-Bot's: 2 % and a 2 % sigma): a bad measurement, not
+                        // used.
                         self.odometry_scale = if (0.8..=1.25).contains(&odometry_scale) {
                             odometry_scale
                         } else {

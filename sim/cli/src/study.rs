@@ -269,6 +269,12 @@ fn built_by(dir: &Path) -> Result<Option<String>> {
     ))
 }
 
+/// Whether a run made by build `made_by` (`None`: no run) can stand in a study by build
+/// `this`: the same build, and one that could read itself (`"unknown"` matches nothing).
+fn reusable(made_by: Option<&str>, this: &str) -> bool {
+    this != "unknown" && made_by == Some(this)
+}
+
 /// `hetsim localize`: mapping runs, cross-validation, and each run's child localizing on its
 /// own path after mapping (in lockstep).
 pub fn localize(
@@ -298,7 +304,7 @@ pub fn localize(
     for seed in 1..=seeds {
         let dir = out.join(format!("runs/seed-{seed}"));
         let made_by = built_by(&dir)?;
-        if made_by.as_deref() == Some(hetsim_eval::results::build_sha256()) {
+        if reusable(made_by.as_deref(), hetsim_eval::results::build_sha256()) {
             eprintln!(
                 "seed {seed}: reusing {} (made by this build)",
                 dir.display()
@@ -312,7 +318,7 @@ pub fn localize(
                 Some(other) => eprintln!(
                     "seed {seed}: {} was made by another build of hetsim (build_sha256 {}); running the mission again",
                     dir.display(),
-                    &other[..other.len().min(12)]
+                    other.chars().take(12).collect::<String>()
                 ),
                 None => eprintln!("seed {seed}: running the mission"),
             }
@@ -384,7 +390,19 @@ pub fn localize(
 
 #[cfg(test)]
 mod tests {
-    use super::built_by;
+    use super::{built_by, reusable};
+
+    /// Only a run of this very build is reused; a build that could not hash itself reuses
+    /// nothing, not even a run of another build that could not either.
+    #[test]
+    fn only_a_run_of_this_build_is_reused() {
+        let this = "ab".repeat(32);
+        assert!(reusable(Some(&this), &this));
+        assert!(!reusable(None, &this), "no run");
+        assert!(!reusable(Some(""), &this), "no build recorded");
+        assert!(!reusable(Some(&"cd".repeat(32)), &this), "another build");
+        assert!(!reusable(Some("unknown"), "unknown"));
+    }
 
     /// A seed's folder is reused only when this build made it: no run, a run without a
     /// recorded build, and one of another build are told apart; a manifest that is not JSON

@@ -110,7 +110,9 @@ pub fn build_sha256() -> &'static str {
         use sha2::{Digest, Sha256};
         let hash = || -> std::io::Result<String> {
             use std::io::Read;
-            let mut file = std::fs::File::open(std::env::current_exe()?)?;
+            // The running file itself (on Linux, even once a rebuild has replaced it).
+            let mut file = std::fs::File::open("/proc/self/exe")
+                .or_else(|_| std::fs::File::open(std::env::current_exe()?))?;
             let mut hasher = Sha256::new();
             let mut buf = vec![0u8; 1 << 20];
             loop {

@@ -117,11 +117,14 @@ fn a_drive_turns_by_compass_then_stops_after_the_encoder_distance() {
     // 1 cm/s; a step with no reading is not standing).
     assert_eq!(step(&mut c, 5 * T, &[odo(5 * T, 0.008)]), Command::Stop);
     assert_eq!(step(&mut c, 5 * T + 1, &[compass(1.01)]), Command::Stop);
+    // Half a millimetre in 10 ms is 5 cm/s: still rolling, however small the reading.
+    let soon = 5 * T + T / 10;
+    assert_eq!(step(&mut c, soon, &[odo(soon, 0.0005)]), Command::Stop);
     assert!(replies(&mut c).is_empty(), "reported while rolling");
     assert_eq!(step(&mut c, 6 * T, &[odo(6 * T, 0.0002)]), Command::Stop);
     let r = replies(&mut c);
     assert!(
-        matches!(r[..], [TeamMsg::Done { seq: 1, driven_m, heading_rad }] if (driven_m - 0.3182).abs() < 1e-9 && (heading_rad - 1.01).abs() < 1e-9),
+        matches!(r[..], [TeamMsg::Done { seq: 1, driven_m, heading_rad }] if (driven_m - 0.3187).abs() < 1e-9 && (heading_rad - 1.01).abs() < 1e-9),
         "{r:?}"
     );
     // The order again (the parent missed the reply): acknowledged and answered again,
@@ -415,6 +418,20 @@ fn a_calibrated_child_drives_its_path_with_encoders_that_overcount() {
         off(&calibrated)
     );
     assert!(calibrated.heard.contains(&TeamMsg::Localized { seq: 9 }));
+}
+
+/// A scale no wheel's slip or encoder error could give (a bad measurement) is not used: the
+/// child drives as uncalibrated, to the same spot.
+#[test]
+fn an_implausible_scale_is_not_used() {
+    let blind = run_tour(1.0, 1.0).at;
+    for scale in [0.5, 1.3] {
+        let at = run_tour(scale, 1.0).at;
+        assert!(
+            (at[0] - blind[0]).abs() < 1e-12 && (at[1] - blind[1]).abs() < 1e-12,
+            "scale {scale}: {at:?} vs {blind:?}"
+        );
+    }
 }
 
 /// A drive whose encoders fall silent as it stops is reported a second after the stop: the

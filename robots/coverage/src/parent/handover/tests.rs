@@ -257,5 +257,10 @@ fn the_database_carries_the_encoders_scale_from_the_hops_seen() {
     assert!((scale_sent(&mut p) - 0.96).abs() < 1e-9);
     let tour = p.team_report().tour.expect("sent");
     assert_eq!(tour.odometry_hops.len(), 6);
+    // Each hop between consecutive images, by their stamps (the evaluation finds the child's
+    // true positions by them).
+    for (k, h) in tour.odometry_hops.iter().enumerate() {
+        assert_eq!((h.from_ns, h.to_ns), (k as u64 * S, (k as u64 + 1) * S));
+    }
     assert!((tour.odometry_scale - 0.96).abs() < 1e-9);
 }
