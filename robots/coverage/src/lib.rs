@@ -33,7 +33,9 @@ pub mod visibility;
 pub use execute::{plan, plan_with, Frame, Phase, Plan, PlanError};
 pub use map::{Map, Vertex};
 pub use parent::{HatTracker, ParentParams, ParentStack};
-pub use report::{DatabaseImage, OdometryHop, TeamReport, TourReport, TrackedPath, TEAM_ARTIFACT};
+pub use report::{
+    median, DatabaseImage, OdometryHop, TeamReport, TourReport, TrackedPath, TEAM_ARTIFACT,
+};
 pub use team::{ChildParams, ChildStack};
 pub use validate::validate;
 pub use visibility::Visibility;

@@ -94,3 +94,18 @@ pub struct OdometryHop {
     /// What the child's encoders counted between them, metres.
     pub counted_m: f64,
 }
+
+/// The median of `v`, the middle two's mean for an even count (`None` when empty): the
+/// encoders' scale from its hops, by the parent and, on the truth, by the evaluation.
+pub fn median(mut v: Vec<f64>) -> Option<f64> {
+    if v.is_empty() {
+        return None;
+    }
+    v.sort_by(f64::total_cmp);
+    let n = v.len();
+    Some(if n % 2 == 1 {
+        v[n / 2]
+    } else {
+        (v[n / 2 - 1] + v[n / 2]) / 2.0
+    })
+}

@@ -356,7 +356,7 @@ impl TeamMetrics {
             localization_odometry_scale_true: r.tour.as_ref().and_then(|t| {
                 let truth = output.truth_of(&t.child).filter(|tr| !tr.is_empty())?;
                 let at = |ns: u64| truth_at(truth, ns).translation.vector;
-                median(
+                hetsim_coverage::median(
                     t.odometry_hops
                         .iter()
                         .map(|h| (at(h.to_ns) - at(h.from_ns)).xy().norm() / h.counted_m)
@@ -467,19 +467,4 @@ pub fn files(
         crate::charts::coverage_map_png(grid, &mission),
     ));
     out
-}
-
-/// The median of `v`, the middle two's mean for an even count (`None` when empty): as the
-/// parent takes it for the encoders' scale.
-fn median(mut v: Vec<f64>) -> Option<f64> {
-    if v.is_empty() {
-        return None;
-    }
-    v.sort_by(f64::total_cmp);
-    let n = v.len();
-    Some(if n % 2 == 1 {
-        v[n / 2]
-    } else {
-        (v[n / 2 - 1] + v[n / 2]) / 2.0
-    })
 }

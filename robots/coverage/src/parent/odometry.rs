@@ -28,7 +28,7 @@
 //!   the lab's seed 5: the hat tracker places children about 0.9 % too close to the
 //!   parent's camera, and the scale came out 1-1.5 % low.
 
-use crate::report::OdometryHop;
+use crate::report::{median, OdometryHop};
 
 /// Samples needed before the median is trusted over no calibration.
 pub(super) const MIN_SAMPLES: usize = 5;
@@ -78,20 +78,6 @@ impl Calibration {
     pub(super) fn hops(&self) -> &[OdometryHop] {
         &self.hops
     }
-}
-
-/// The median of `v` (`None` when empty).
-fn median(mut v: Vec<f64>) -> Option<f64> {
-    if v.is_empty() {
-        return None;
-    }
-    v.sort_by(f64::total_cmp);
-    let n = v.len();
-    Some(if n % 2 == 1 {
-        v[n / 2]
-    } else {
-        (v[n / 2 - 1] + v[n / 2]) / 2.0
-    })
 }
 
 #[cfg(test)]
