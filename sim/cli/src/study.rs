@@ -253,9 +253,18 @@ fn whole_run(
     sweep::metrics_of_run(sweep, run, dir)
 }
 
-/// Which build made the run in `dir`: its manifest's `build_sha256` (an empty string for a
-/// run from before manifests named it); `None` where there is no finished run.
-fn built_by(dir: &Path) -> Result<Option<String>> {
+/// What made the finished run in a folder, from its manifest: the build (`build_sha256`, empty
+/// for a run from before manifests named it), the scenario's files (`files_sha256`) and the
+/// renderer's backend (`adapter.backend`, lower case; `None` for an unrendered run).
+#[derive(Clone, Debug, Default, PartialEq)]
+struct MadeBy {
+    build: String,
+    files: std::collections::BTreeMap<String, String>,
+    backend: Option<String>,
+}
+
+/// What made the run in `dir`; `None` where there is no finished run.
+fn made_by(dir: &Path) -> Result<Option<MadeBy>> {
     let path = dir.join("manifest.json");
     if !path.is_file() {
         return Ok(None);
@@ -264,15 +273,54 @@ fn built_by(dir: &Path) -> Result<Option<String>> {
         &std::fs::read(&path).with_context(|| format!("{}", path.display()))?,
     )
     .with_context(|| format!("{}: not a run's manifest", path.display()))?;
-    Ok(Some(
-        manifest["build_sha256"].as_str().unwrap_or("").to_string(),
-    ))
+    Ok(Some(MadeBy {
+        build: manifest["build_sha256"].as_str().unwrap_or("").to_string(),
+        files: serde_json::from_value(manifest["files_sha256"].clone()).unwrap_or_default(),
+        backend: manifest["adapter"]["backend"]
+            .as_str()
+            .map(str::to_ascii_lowercase),
+    }))
 }
 
-/// Whether a run made by build `made_by` (`None`: no run) can stand in a study by build
-/// `this`: the same build, and one that could read itself (`"unknown"` matches nothing).
-fn reusable(made_by: Option<&str>, this: &str) -> bool {
-    this != "unknown" && made_by == Some(this)
+/// Why a run made as `made` cannot stand in a study by build `this` of scenario files
+/// `files` on backend `backend` (`None`: any), or `None` where it can: the same build, one
+/// that could read itself (`"unknown"` matches nothing), the same files, byte for byte, and
+/// the backend asked for.
+fn not_reusable(
+    made: &MadeBy,
+    this: &str,
+    files: &std::collections::BTreeMap<String, String>,
+    backend: Option<&str>,
+) -> Option<String> {
+    if made.build.is_empty() {
+        return Some("was made by a hetsim that did not record its build".into());
+    }
+    if this == "unknown" || made.build != this {
+        return Some(format!(
+            "was made by another build of hetsim (build_sha256 {})",
+            made.build.chars().take(12).collect::<String>()
+        ));
+    }
+    if &made.files != files {
+        let changed: Vec<&str> = files
+            .keys()
+            .chain(made.files.keys())
+            .filter(|k| files.get(*k) != made.files.get(*k))
+            .map(String::as_str)
+            .collect::<std::collections::BTreeSet<_>>()
+            .into_iter()
+            .collect();
+        return Some(format!(
+            "was made from other scenario files ({} changed)",
+            changed.join(", ")
+        ));
+    }
+    match (backend, made.backend.as_deref()) {
+        (Some(want), Some(got)) if want != got => {
+            Some(format!("was rendered on {got}, not the {want} asked for"))
+        }
+        _ => None,
+    }
 }
 
 /// `hetsim localize`: mapping runs, cross-validation, and each run's child localizing on its
@@ -299,26 +347,32 @@ pub fn localize(
     let out = out.unwrap_or_else(|| {
         PathBuf::from("results/runs").join(format!("localize-{}", base.file.name))
     });
+    // The backend asked for (the option, else HETSIM_BACKEND); `any` asks for none.
+    let backend = render
+        .backend
+        .clone()
+        .or_else(|| std::env::var("HETSIM_BACKEND").ok())
+        .map(|b| b.to_ascii_lowercase())
+        .filter(|b| b != "any");
     let mut databases = Vec::new();
     let mut missions = Vec::new();
     for seed in 1..=seeds {
         let dir = out.join(format!("runs/seed-{seed}"));
-        let made_by = built_by(&dir)?;
-        if reusable(made_by.as_deref(), hetsim_eval::results::build_sha256()) {
+        // `Some(None)`: a run to reuse; `Some(Some(why))`: a run to replace; `None`: no run.
+        let verdict = made_by(&dir)?.map(|m| {
+            let this = hetsim_eval::results::build_sha256();
+            not_reusable(&m, this, &base.file_hashes, backend.as_deref())
+        });
+        if let Some(None) = verdict {
             eprintln!(
-                "seed {seed}: reusing {} (made by this build)",
+                "seed {seed}: reusing {} (made by this build from the same files)",
                 dir.display()
             );
         } else {
-            match made_by {
-                Some(other) if other.is_empty() => eprintln!(
-                    "seed {seed}: {} was made by a hetsim that did not record its build; running the mission again",
+            match verdict.flatten() {
+                Some(why) => eprintln!(
+                    "seed {seed}: {} {why}; running the mission again",
                     dir.display()
-                ),
-                Some(other) => eprintln!(
-                    "seed {seed}: {} was made by another build of hetsim (build_sha256 {}); running the mission again",
-                    dir.display(),
-                    other.chars().take(12).collect::<String>()
                 ),
                 None => eprintln!("seed {seed}: running the mission"),
             }
@@ -390,42 +444,80 @@ pub fn localize(
 
 #[cfg(test)]
 mod tests {
-    use super::{built_by, reusable};
+    use super::{made_by, not_reusable, MadeBy};
+    use std::collections::BTreeMap;
 
-    /// Only a run of this very build is reused; a build that could not hash itself reuses
-    /// nothing, not even a run of another build that could not either.
-    #[test]
-    fn only_a_run_of_this_build_is_reused() {
-        let this = "ab".repeat(32);
-        assert!(reusable(Some(&this), &this));
-        assert!(!reusable(None, &this), "no run");
-        assert!(!reusable(Some(""), &this), "no build recorded");
-        assert!(!reusable(Some(&"cd".repeat(32)), &this), "another build");
-        assert!(!reusable(Some("unknown"), "unknown"));
+    fn files(hash: &str) -> BTreeMap<String, String> {
+        BTreeMap::from([("scenarios/lab.toml".to_string(), hash.to_string())])
     }
 
-    /// A seed's folder is reused only when this build made it: no run, a run without a
-    /// recorded build, and one of another build are told apart; a manifest that is not JSON
-    /// is an error naming it.
+    /// Only a run of this very build, from the same files, on the backend asked for is
+    /// reused; a build that could not hash itself reuses nothing, not even a run of another
+    /// build that could not either.
     #[test]
-    fn a_run_tells_which_build_made_it() {
+    fn only_a_run_of_this_build_and_these_files_is_reused() {
+        let this = "ab".repeat(32);
+        let made = MadeBy {
+            build: this.clone(),
+            files: files("11"),
+            backend: Some("vulkan".into()),
+        };
+        assert_eq!(not_reusable(&made, &this, &files("11"), None), None);
+        assert_eq!(
+            not_reusable(&made, &this, &files("11"), Some("vulkan")),
+            None
+        );
+        let why = |m: &MadeBy, this: &str, f: &BTreeMap<String, String>, b: Option<&str>| {
+            not_reusable(m, this, f, b).unwrap_or_else(|| panic!("{m:?} reused"))
+        };
+        let old = MadeBy {
+            build: String::new(),
+            ..made.clone()
+        };
+        assert!(why(&old, &this, &files("11"), None).contains("did not record"));
+        assert!(why(&made, &"cd".repeat(32), &files("11"), None).contains("another build"));
+        let unknown = MadeBy {
+            build: "unknown".into(),
+            ..made.clone()
+        };
+        assert!(why(&unknown, "unknown", &files("11"), None).contains("another build"));
+        let changed = why(&made, &this, &files("22"), None);
+        assert!(changed.contains("scenarios/lab.toml changed"), "{changed}");
+        let gl = why(&made, &this, &files("11"), Some("gl"));
+        assert!(gl.contains("rendered on vulkan, not the gl"), "{gl}");
+    }
+
+    /// A seed's folder tells what made it: no run, a run without a recorded build, and one
+    /// with its build, files and backend; a manifest that is not JSON is an error naming it.
+    #[test]
+    fn a_run_tells_what_made_it() {
         let dir = tempfile::tempdir().unwrap();
         let run = dir.path().join("seed-1");
-        assert_eq!(built_by(&run).unwrap(), None, "no run yet");
+        assert_eq!(made_by(&run).unwrap(), None, "no run yet");
         std::fs::create_dir_all(&run).unwrap();
         let write = |text: &str| std::fs::write(run.join("manifest.json"), text).unwrap();
         write(r#"{"digest": "ab"}"#);
         assert_eq!(
-            built_by(&run).unwrap().as_deref(),
-            Some(""),
-            "no build recorded"
+            made_by(&run).unwrap(),
+            Some(MadeBy::default()),
+            "nothing recorded"
         );
         let this = hetsim_eval::results::build_sha256();
         assert_eq!(this.len(), 64, "{this}");
-        write(&format!(r#"{{"build_sha256": "{this}"}}"#));
-        assert_eq!(built_by(&run).unwrap().as_deref(), Some(this));
+        write(&format!(
+            r#"{{"build_sha256": "{this}", "files_sha256": {{"scenarios/lab.toml": "11"}},
+                "adapter": {{"backend": "Gl"}}}}"#
+        ));
+        assert_eq!(
+            made_by(&run).unwrap(),
+            Some(MadeBy {
+                build: this.to_string(),
+                files: files("11"),
+                backend: Some("gl".into()),
+            })
+        );
         write("{");
-        let err = format!("{:#}", built_by(&run).unwrap_err());
+        let err = format!("{:#}", made_by(&run).unwrap_err());
         assert!(err.contains("manifest.json"), "{err}");
     }
 }

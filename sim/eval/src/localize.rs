@@ -446,7 +446,11 @@ pub fn markdown(s: &Summary) -> String {
             "| encoders' scale sent to the localizing child (same hops on the truth; sent minus truth) | {} ({}; {}) | - |\n",
             range(0),
             range(1),
-            ms(&MeanStd::population(&off), "")
+            // Three decimals: the difference is a few thousandths.
+            {
+                let m = MeanStd::population(&off);
+                format!("{:.3} ± {:.3}", m.mean, m.std)
+            }
         );
     }
     // The worst path beside the mean: a mean can hide one that never converged.
