@@ -21,8 +21,20 @@
 //!   of the blob on that plane: each pixel's point weighted by the area its ray covers
 //!   there, `cos θ / sin³(-θ)` (the pixel's solid angle over the plane's slant). A plain
 //!   mean of pixels, or of their rows, leans towards the camera: nearer parts of the hat
-//!   cover more pixels. The blob also holds the hat's near sides, a little lower than its
-//!   top, which pulls the estimate a few millimetres towards the camera.
+//!   cover more pixels.
+//! * **The hat's sides.** The hat is a slab [`HatFinder::hat_thickness_m`] thick, and the
+//!   blob holds its near sides too (a darker orange in the rendered panoramas, 3-4 rows at
+//!   1.7 m). A point `z` below the top at floor range `ρ` meets the top's plane at
+//!   `ρ k(z)`, `k(z) = d / (d + z)` with `d` the camera's height above the top, so on that
+//!   plane the blob is the union of the top shrunk towards the camera's foot by every `k`
+//!   from `k(t)` to 1 (every ray through the slab, the sides hiding nothing of it). For a
+//!   top symmetric about its centre `c` (a square at any heading, a disc) that union is,
+//!   to within the top's shrinking (under 2 % of its size), symmetric about
+//!   `c (1 + k(t)) / 2`: the centroid's range is multiplied by `2 / (1 + k(t))` to undo
+//!   it. In the lab (`d` = 1.326 m, `t` = 0.024 m) that is 0.9 %: 1.6 cm at 1.75 m. Measured
+//!   on 903 rendered hats of a lab run at 0.9-1.9 m, the uncorrected range was 0.68 ±
+//!   0.05 % short; corrected, 0.21 % long: the resampled panorama blends the sides' lower
+//!   edge with the body below, and a blended pixel is not orange.
 //! * **Whole hats only.** The same weights sum to the blob's area on the hat's plane. A
 //!   whole hat measures its top's area plus a little of its sides (1.0-1.15 times the top
 //!   in the lab's panoramas); a hat partly hidden behind furniture measures less, and its
@@ -102,6 +114,9 @@ pub struct HatFinder {
     /// The area of a hat's top, square metres: blobs outside 0.8-1.6 times it are dropped
     /// (see the module's decisions).
     pub hat_area_m2: f64,
+    /// The hat's thickness, metres: its sides' height below the top (see the module's
+    /// decisions; 0 for a flat hat).
+    pub hat_thickness_m: f64,
 }
 
 /// Whether an RGB pixel is hat orange (see the module's decisions).
@@ -183,7 +198,9 @@ impl HatFinder {
                 if !(0.8 * self.hat_area_m2..=1.6 * self.hat_area_m2).contains(&area_m2) {
                     continue;
                 }
-                let position_m = [sum[0] / weight, sum[1] / weight];
+                let sides = 2.0 * (drop + self.hat_thickness_m.max(0.0))
+                    / (2.0 * drop + self.hat_thickness_m.max(0.0));
+                let position_m = [sides * sum[0] / weight, sides * sum[1] / weight];
                 let range = position_m[0].hypot(position_m[1]);
                 hats.push(Hat {
                     azimuth_rad: position_m[1].atan2(position_m[0]),

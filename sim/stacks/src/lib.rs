@@ -320,6 +320,7 @@ fn hat_tracker(scenario: &Scenario, robot: &ResolvedRobot) -> Option<hetsim_cove
                 hat_height_m,
                 min_pixels: 4,
                 hat_area_m2,
+                hat_thickness_m: hetsim_scene::HAT_THICKNESS_M,
             },
             range_m: coverage_params(scenario).r_los_m,
             gate_m: 0.3,

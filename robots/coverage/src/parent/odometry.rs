@@ -24,9 +24,10 @@
 //! * **Its check.** The hops go into the report with their images' stamps, and the
 //!   evaluation measures the same hops on the truth (`localization_odometry_scale_true` in
 //!   `metrics.json`): the difference is the tracker's share of the error; the rest is the
-//!   hops' bends (a hop's path is about 0.6 % longer than straight in the lab). Measured on
-//!   the lab's seed 5: the hat tracker places children about 0.9 % too close to the
-//!   parent's camera, and the scale came out 1-1.5 % low.
+//!   hops' bends (a hop's path is about 0.6 % longer than straight in the lab), so the
+//!   scale comes out about that much low. Before the hat tracker undid the pull of the hats'
+//!   sides (`hetsim_vision::hats`) it placed children about 0.9 % too close to the
+//!   parent's camera (measured on the lab's seed 5), and the scale came out 1-1.5 % low.
 
 use crate::report::{median, OdometryHop};
 

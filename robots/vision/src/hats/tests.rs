@@ -19,6 +19,8 @@ fn finder() -> HatFinder {
         hat_height_m: HAT_M,
         min_pixels: 4,
         hat_area_m2: HAT_SIDE_M * HAT_SIDE_M,
+        // Flat hats (`draw`); `draw_slabs` draws them with sides.
+        hat_thickness_m: 0.0,
     }
 }
 
@@ -177,4 +179,102 @@ fn a_whole_hat_measures_its_area_and_a_cut_or_doubled_one_is_dropped() {
     // Two hats touching, one blob of twice the area: no hat.
     let pair = f.find(&draw(&f, &[[1.0, 0.5], [1.0, 0.5 + HAT_SIDE_M]]));
     assert!(pair.is_empty(), "{pair:?}");
+}
+
+/// The lab's hats: 2.4 cm thick.
+const HAT_THICK_M: f64 = 0.024;
+
+/// A panorama of hats as slabs `HAT_THICK_M` thick (top at `HAT_M`), centred at `hats`'
+/// first two values and turned by the third (radians), drawn by exact ray casting: a pixel
+/// is orange when its ray passes through a slab between its top and bottom planes.
+fn draw_slabs(f: &HatFinder, hats: &[[f64; 3]]) -> Image {
+    let p = f.panorama;
+    let mut img = draw(f, &[]);
+    let half = HAT_SIDE_M / 2.0;
+    for v in 0..p.height {
+        let el = p.elevation(v as f64);
+        if el >= 0.0 {
+            continue;
+        }
+        for u in 0..p.width {
+            let az = p.azimuth(u as f64);
+            // The ray's floor ranges at the slab's top and bottom planes.
+            let r0 = (CAMERA_M - HAT_M) / (-el).tan();
+            let r1 = (CAMERA_M - HAT_M + HAT_THICK_M) / (-el).tan();
+            let hit = hats.iter().any(|&[cx, cy, turn]| {
+                // The segment from r0 to r1 in the slab's frame, clipped to its square.
+                let to_slab = |r: f64| {
+                    let (dx, dy) = (r * az.cos() - cx, r * az.sin() - cy);
+                    [
+                        turn.cos() * dx + turn.sin() * dy,
+                        -turn.sin() * dx + turn.cos() * dy,
+                    ]
+                };
+                let (a, b) = (to_slab(r0), to_slab(r1));
+                let (mut lo, mut hi) = (0.0f64, 1.0f64);
+                for k in 0..2 {
+                    let d = b[k] - a[k];
+                    if d.abs() < 1e-12 {
+                        if a[k].abs() > half {
+                            return false;
+                        }
+                        continue;
+                    }
+                    let (t0, t1) = ((-half - a[k]) / d, (half - a[k]) / d);
+                    lo = lo.max(t0.min(t1));
+                    hi = hi.min(t0.max(t1));
+                }
+                lo <= hi
+            });
+            if hit {
+                let k = ((v * p.width + u) * 3) as usize;
+                img.data[k..k + 3].copy_from_slice(&[246, 171, 64]);
+            }
+        }
+    }
+    img
+}
+
+#[test]
+fn a_slab_hats_sides_are_undone_to_within_one_rows_footprint() {
+    let flat = finder();
+    let slab = HatFinder {
+        hat_thickness_m: HAT_THICK_M,
+        ..finder()
+    };
+    for h in [
+        [0.6, 0.0, 0.0],
+        [1.2, 0.9, 0.3],
+        [-1.5, 0.7, 0.785],
+        [0.3, -1.9, -0.5],
+        [2.2, 0.4, 1.2],
+    ] {
+        let img = draw_slabs(&slab, &[h]);
+        let range = h[0].hypot(h[1]);
+        let bound = row_footprint_m(&slab, range);
+        let off = |f: &HatFinder| {
+            let hats = f.find(&img);
+            assert_eq!(hats.len(), 1, "{h:?}: {hats:?}");
+            let [x, y] = hats[0].position_m;
+            // Along the sight line (negative: towards the camera) and across it.
+            let along = (x * h[0] + y * h[1]) / range - range;
+            let across = (-x * h[1] + y * h[0]) / range;
+            (along, across)
+        };
+        let (along, across) = off(&slab);
+        assert!(
+            along.hypot(across) < bound,
+            "{h:?}: {along:.4} m along, {across:.4} across (bound {bound:.4})"
+        );
+        // Without the sides' correction the centroid lies towards the camera by about half
+        // the sides' shadow on the top's plane, range t / (d + t) / 2: more than a row's
+        // footprint here, so the bound above holds only with the correction.
+        let (flat_along, _) = off(&flat);
+        let half_shadow = range * HAT_THICK_M / (CAMERA_M - HAT_M + HAT_THICK_M) / 2.0;
+        assert!(
+            (flat_along + half_shadow).abs() < bound / 2.0 && -flat_along > bound,
+            "{h:?}: uncorrected {flat_along:.4} m along (half shadow {half_shadow:.4}, bound \
+             {bound:.4})"
+        );
+    }
 }
