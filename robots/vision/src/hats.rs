@@ -148,6 +148,9 @@ impl HatFinder {
         if drop <= 0.0 {
             return Vec::new();
         }
+        // The stretch that undoes the hat's sides (see the module's decisions).
+        let t = self.hat_thickness_m.max(0.0);
+        let sides = 2.0 * (drop + t) / (2.0 * drop + t);
         let first = (0..h).find(|&v| p.elevation(v as f64) < 0.0).unwrap_or(h);
         // A pixel's angular size (azimuth step times elevation step), radians squared.
         let pixel =
@@ -198,8 +201,6 @@ impl HatFinder {
                 if !(0.8 * self.hat_area_m2..=1.6 * self.hat_area_m2).contains(&area_m2) {
                     continue;
                 }
-                let sides = 2.0 * (drop + self.hat_thickness_m.max(0.0))
-                    / (2.0 * drop + self.hat_thickness_m.max(0.0));
                 let position_m = [sides * sum[0] / weight, sides * sum[1] / weight];
                 let range = position_m[0].hypot(position_m[1]);
                 hats.push(Hat {

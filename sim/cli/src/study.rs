@@ -302,14 +302,13 @@ fn not_reusable(
         ));
     }
     if &made.files != files {
-        let changed: Vec<&str> = files
+        let changed: std::collections::BTreeSet<&str> = files
             .keys()
             .chain(made.files.keys())
             .filter(|k| files.get(*k) != made.files.get(*k))
             .map(String::as_str)
-            .collect::<std::collections::BTreeSet<_>>()
-            .into_iter()
             .collect();
+        let changed: Vec<&str> = changed.into_iter().collect();
         return Some(format!(
             "was made from other scenario files ({} changed)",
             changed.join(", ")

@@ -442,15 +442,14 @@ pub fn markdown(s: &Summary) -> String {
             format!("{lo:.3}-{hi:.3}")
         };
         let off: Vec<f64> = s.odometry_scales.iter().map(|p| p[0] - p[1]).collect();
+        // Three decimals: the difference is a few thousandths.
+        let off = MeanStd::population(&off);
         t += &format!(
-            "| encoders' scale sent to the localizing child (same hops on the truth; sent minus truth) | {} ({}; {}) | - |\n",
+            "| encoders' scale sent to the localizing child (same hops on the truth; sent minus truth) | {} ({}; {:.3} ± {:.3}) | - |\n",
             range(0),
             range(1),
-            // Three decimals: the difference is a few thousandths.
-            {
-                let m = MeanStd::population(&off);
-                format!("{:.3} ± {:.3}", m.mean, m.std)
-            }
+            off.mean,
+            off.std
         );
     }
     // The worst path beside the mean: a mean can hide one that never converged.

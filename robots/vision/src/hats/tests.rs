@@ -24,36 +24,11 @@ fn finder() -> HatFinder {
     }
 }
 
-/// A panorama of hats centred at `centres` (mount frame, metres), axis-aligned squares.
+/// A panorama of flat hats (their tops) centred at `centres` (mount frame, metres),
+/// axis-aligned squares.
 fn draw(f: &HatFinder, centres: &[[f64; 2]]) -> Image {
-    let p = f.panorama;
-    let mut data = Vec::with_capacity((p.width * p.height * 3) as usize);
-    for v in 0..p.height {
-        let el = p.elevation(v as f64);
-        for u in 0..p.width {
-            let az = p.azimuth(u as f64);
-            let hit = el < 0.0 && {
-                let range = (CAMERA_M - HAT_M) / (-el).tan();
-                let (x, y) = (range * az.cos(), range * az.sin());
-                centres.iter().any(|c| {
-                    (x - c[0]).abs() <= HAT_SIDE_M / 2.0 && (y - c[1]).abs() <= HAT_SIDE_M / 2.0
-                })
-            };
-            data.extend_from_slice(if hit {
-                &[246, 171, 64]
-            } else {
-                &[120, 118, 112]
-            });
-        }
-    }
-    Image {
-        stamp_ns: 0,
-        sensor: "omni".into(),
-        width: p.width,
-        height: p.height,
-        encoding: PixelEncoding::Rgb8,
-        data,
-    }
+    let hats: Vec<[f64; 3]> = centres.iter().map(|&[x, y]| [x, y, 0.0]).collect();
+    cast(f, &hats, 0.0)
 }
 
 /// One row's step in floor range at `range`: the resolution the centroid improves on.
@@ -184,55 +159,68 @@ fn a_whole_hat_measures_its_area_and_a_cut_or_doubled_one_is_dropped() {
 /// The lab's hats: 2.4 cm thick.
 const HAT_THICK_M: f64 = 0.024;
 
-/// A panorama of hats as slabs `HAT_THICK_M` thick (top at `HAT_M`), centred at `hats`'
-/// first two values and turned by the third (radians), drawn by exact ray casting: a pixel
-/// is orange when its ray passes through a slab between its top and bottom planes.
+/// A panorama of hats as slabs `HAT_THICK_M` thick, centred at `hats`' first two values and
+/// turned by the third (radians).
 fn draw_slabs(f: &HatFinder, hats: &[[f64; 3]]) -> Image {
+    cast(f, hats, HAT_THICK_M)
+}
+
+/// A panorama drawn by exact ray casting: a grey floor, and orange where a pixel's ray passes
+/// through a hat, a square slab `thickness` thick (0: its top alone) whose top is at `HAT_M`,
+/// centred at `hats`' first two values and turned by the third (radians).
+fn cast(f: &HatFinder, hats: &[[f64; 3]], thickness: f64) -> Image {
     let p = f.panorama;
-    let mut img = draw(f, &[]);
     let half = HAT_SIDE_M / 2.0;
+    let mut data = Vec::with_capacity((p.width * p.height * 3) as usize);
     for v in 0..p.height {
         let el = p.elevation(v as f64);
-        if el >= 0.0 {
-            continue;
-        }
         for u in 0..p.width {
             let az = p.azimuth(u as f64);
-            // The ray's floor ranges at the slab's top and bottom planes.
-            let r0 = (CAMERA_M - HAT_M) / (-el).tan();
-            let r1 = (CAMERA_M - HAT_M + HAT_THICK_M) / (-el).tan();
-            let hit = hats.iter().any(|&[cx, cy, turn]| {
-                // The segment from r0 to r1 in the slab's frame, clipped to its square.
-                let to_slab = |r: f64| {
-                    let (dx, dy) = (r * az.cos() - cx, r * az.sin() - cy);
-                    [
-                        turn.cos() * dx + turn.sin() * dy,
-                        -turn.sin() * dx + turn.cos() * dy,
-                    ]
-                };
-                let (a, b) = (to_slab(r0), to_slab(r1));
-                let (mut lo, mut hi) = (0.0f64, 1.0f64);
-                for k in 0..2 {
-                    let d = b[k] - a[k];
-                    if d.abs() < 1e-12 {
-                        if a[k].abs() > half {
-                            return false;
+            let hit = el < 0.0 && {
+                // The ray's floor ranges at the slab's top and bottom planes.
+                let r0 = (CAMERA_M - HAT_M) / (-el).tan();
+                let r1 = (CAMERA_M - HAT_M + thickness) / (-el).tan();
+                hats.iter().any(|&[cx, cy, turn]| {
+                    // The segment from r0 to r1 in the slab's frame, clipped to its square.
+                    let to_slab = |r: f64| {
+                        let (dx, dy) = (r * az.cos() - cx, r * az.sin() - cy);
+                        [
+                            turn.cos() * dx + turn.sin() * dy,
+                            -turn.sin() * dx + turn.cos() * dy,
+                        ]
+                    };
+                    let (a, b) = (to_slab(r0), to_slab(r1));
+                    let (mut lo, mut hi) = (0.0f64, 1.0f64);
+                    for k in 0..2 {
+                        let d = b[k] - a[k];
+                        if d.abs() < 1e-12 {
+                            if a[k].abs() > half {
+                                return false;
+                            }
+                            continue;
                         }
-                        continue;
+                        let (t0, t1) = ((-half - a[k]) / d, (half - a[k]) / d);
+                        lo = lo.max(t0.min(t1));
+                        hi = hi.min(t0.max(t1));
                     }
-                    let (t0, t1) = ((-half - a[k]) / d, (half - a[k]) / d);
-                    lo = lo.max(t0.min(t1));
-                    hi = hi.min(t0.max(t1));
-                }
-                lo <= hi
+                    lo <= hi
+                })
+            };
+            data.extend_from_slice(if hit {
+                &[246, 171, 64]
+            } else {
+                &[120, 118, 112]
             });
-            if hit {
-                let k = ((v * p.width + u) * 3) as usize;
-                img.data[k..k + 3].copy_from_slice(&[246, 171, 64]);
-            }
         }
     }
-    img
+    Image {
+        stamp_ns: 0,
+        sensor: "omni".into(),
+        width: p.width,
+        height: p.height,
+        encoding: PixelEncoding::Rgb8,
+        data,
+    }
 }
 
 #[test]
