@@ -310,3 +310,26 @@ fn a_short_or_mangled_row_file_is_an_error_naming_the_file_not_a_panic() {
         "{e}"
     );
 }
+
+#[test]
+fn the_reports_sweep_folders_of_another_build_are_run_afresh() {
+    let tmp = tempfile::tempdir().unwrap();
+    let sweep = load_sweep(&sweep_file(tmp.path())).unwrap();
+    let none = |_: usize, _: usize| {};
+    let dir = tmp.path().join("cached");
+    run_sweep(&sweep, &dir, 2, (1, 1), &none).unwrap();
+    let want = outputs(&dir);
+    // The folder as another build left it: its identity names another executable, and its
+    // first row is not what this build computes.
+    let identity = dir.join("identity.json");
+    let ours = std::fs::read_to_string(&identity).unwrap();
+    let build = hetsim_eval::results::build_sha256();
+    assert!(ours.contains(build), "{ours}");
+    std::fs::write(&identity, ours.replace(build, &"0".repeat(64))).unwrap();
+    let rows = dir.join("rows");
+    std::fs::copy(rows.join("000001.csv"), rows.join("000000.csv")).unwrap();
+    let s = hetsim_eval::report::run_cached(&sweep, &dir, 2, &none).unwrap();
+    assert_eq!(s.finished, 12);
+    assert_eq!(outputs(&dir), want, "every row recomputed");
+    assert_eq!(std::fs::read_to_string(&identity).unwrap(), ours);
+}

@@ -264,6 +264,31 @@ fn a_folder_of_another_sweep_is_never_resumed_or_merged_into() {
     let file = write("2.0, 7.0");
     sweep(&[file.to_str().unwrap(), "--out", out.to_str().unwrap()]);
     let rows_before = std::fs::read(out.join("runs.csv")).unwrap();
+    // The same file, but the folder made by another build of hetsim: its rows would come
+    // from another planner.
+    let identity = out.join("identity.json");
+    let ours = std::fs::read_to_string(&identity).unwrap();
+    let build = serde_json::from_str::<serde_json::Value>(&ours).unwrap()["build_sha256"]
+        .as_str()
+        .unwrap()
+        .to_string();
+    assert_eq!(build.len(), 64, "{ours}");
+    std::fs::write(&identity, ours.replace(&build, &"0".repeat(64))).unwrap();
+    let rebuilt = hetsim(
+        &[
+            "sweep",
+            file.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ],
+        &[],
+    );
+    let err = String::from_utf8_lossy(&rebuilt.stderr);
+    assert!(
+        !rebuilt.status.success() && err.contains("build_sha256"),
+        "{err}"
+    );
+    std::fs::write(&identity, ours).unwrap();
     // The same file with another axis value: its rows would be reported under the new labels.
     let file = write("2.0, 8.0");
     let again = hetsim(

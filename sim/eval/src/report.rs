@@ -2,9 +2,9 @@
 //! beside the paper's values.
 
 use crate::charts::{stacked_boxes_png, StackedBox};
-use crate::sweep::{load_sweep, run_sweep, SummaryCell, SweepSummary};
+use crate::sweep::{load_sweep, run_sweep, SummaryCell, Sweep, SweepError, SweepSummary};
 use crate::EvalError;
-use hetsim_core::files::write_atomic;
+use hetsim_core::files::{write_atomic, FileError};
 use std::path::Path;
 
 /// The paper's Table I: (obstruction, Q mean, Q std, following mean, following std).
@@ -188,6 +188,29 @@ fn paper_rows(
     ))
 }
 
+/// Runs or resumes `sweep` in `dir`, the report's own folder under `results/runs/`. A folder
+/// that another sweep file or another build of hetsim made (its `identity.json` differs) is
+/// removed and the sweep run afresh: resuming it would mix rows of another planner into the
+/// tables.
+pub fn run_cached(
+    sweep: &Sweep,
+    dir: &Path,
+    jobs: usize,
+    progress: &(dyn Fn(usize, usize) + Sync),
+) -> Result<SweepSummary, EvalError> {
+    match run_sweep(sweep, dir, jobs, (1, 1), progress) {
+        Err(SweepError::Mismatch { what, .. }) => {
+            eprintln!(
+                "{}: made by another sweep or build ({what} differ); running it afresh",
+                dir.display()
+            );
+            std::fs::remove_dir_all(dir).map_err(FileError::at(dir))?;
+            Ok(run_sweep(sweep, dir, jobs, (1, 1), progress)?)
+        }
+        other => Ok(other?),
+    }
+}
+
 /// Runs (or resumes) the shipped sweeps and writes the report and its figures under
 /// `root/results/`. Returns the report's path.
 pub fn coverage_report(
@@ -197,34 +220,20 @@ pub fn coverage_report(
 ) -> Result<std::path::PathBuf, EvalError> {
     let t1 = load_sweep(&root.join("scenarios/sweeps/table1.toml"))?;
     let t2 = load_sweep(&root.join("scenarios/sweeps/table2.toml"))?;
-    let s1 = run_sweep(
-        &t1,
-        &root.join("results/runs/sweep-table1"),
-        jobs,
-        (1, 1),
-        progress,
-    )?;
-    let s2 = run_sweep(
-        &t2,
-        &root.join("results/runs/sweep-table2"),
-        jobs,
-        (1, 1),
-        progress,
-    )?;
+    let s1 = run_cached(&t1, &root.join("results/runs/sweep-table1"), jobs, progress)?;
+    let s2 = run_cached(&t2, &root.join("results/runs/sweep-table2"), jobs, progress)?;
     let sp = load_sweep(&root.join("scenarios/sweeps/start-points.toml"))?;
-    let s3 = run_sweep(
+    let s3 = run_cached(
         &sp,
         &root.join("results/runs/sweep-start-points"),
         jobs,
-        (1, 1),
         progress,
     )?;
     let os = load_sweep(&root.join("scenarios/sweeps/obstacle-sizes.toml"))?;
-    let s4 = run_sweep(
+    let s4 = run_cached(
         &os,
         &root.join("results/runs/sweep-obstacle-sizes"),
         jobs,
-        (1, 1),
         progress,
     )?;
     let axis = |sweep: &crate::sweep::Sweep, name: &str| {

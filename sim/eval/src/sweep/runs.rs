@@ -195,13 +195,14 @@ fn row_path(out: &Path, run: &SweepRun) -> PathBuf {
 }
 
 impl Sweep {
-    /// What makes two runs of this sweep the same run: hetsim's version, the kind, the base
+    /// What makes two runs of this sweep the same run: hetsim's version and build (the
+    /// executable's SHA-256: a rebuilt planner makes other rows), the kind, the base
     /// scenario's and every robot file's contents, the axes, seeds, metrics, and the duration
     /// and rendering as resolved (an omitted `render` is `true`, an omitted duration the
     /// scenario's). Written to the output folder as `identity.json`; a folder (or shard)
     /// with another identity is never resumed into or merged, so no row of another sweep is
-    /// ever reported under this sweep's labels. Contents, not paths: shards made from
-    /// checkouts in other folders merge. Compared as the bytes written.
+    /// ever reported under this sweep's labels. Contents, not paths: shards that one
+    /// executable made from checkouts in other folders merge. Compared as the bytes written.
     pub fn identity(&self) -> Result<Vec<u8>, SweepError> {
         use sha2::{Digest, Sha256};
         let hex = |bytes: &[u8]| -> String {
@@ -232,6 +233,7 @@ impl Sweep {
         };
         let identity = serde_json::json!({
             "hetsim_version": env!("CARGO_PKG_VERSION"),
+            "build_sha256": crate::results::build_sha256(),
             "kind": format!("{:?}", self.file.kind).to_lowercase(),
             "base_scenario_sha256": hex(self.base_text.as_bytes()),
             "robot_files_sha256": robot_files,
