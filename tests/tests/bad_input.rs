@@ -572,3 +572,25 @@ fn rendezvous_with_a_negative_range() {
         "> 0",
     );
 }
+
+#[test]
+fn coverage_robot_too_big_to_turn_in_its_cell() {
+    // A 0.36 m square reaches 0.255 m from its centre turning in place: past the 0.25 m to
+    // the side of its 0.5 m cell.
+    let robot = ctbot()
+        .replace("length_m = 0.12", "length_m = 0.36")
+        .replace("width_m = 0.12", "width_m = 0.36");
+    let text = SCENARIO.replace(
+        "mission = { kind = \"grid_goals\", goals = [[1, 1]] }",
+        "mission = { kind = \"coverage_child\" }",
+    );
+    let (_, e, _d) = load(&text, Some(&robot));
+    assert_names(
+        &e,
+        "broken.toml",
+        line_of(&text, "model = \"ctbot\""),
+        "robots[0].model",
+        "ctbot",
+        "half-diagonal 0.255 m",
+    );
+}

@@ -366,6 +366,26 @@ fn check_missions(
                 ),
             ));
         }
+        if coverage && file.world.kind == WorldKind::IndoorGrid {
+            // Coverage robots turn in place on vertices, the centres of free cells: a body
+            // whose half-diagonal reaches half a cell touches an occupied neighbour even
+            // when it stands exactly on its vertex.
+            let b = &r.model.body;
+            let reach = b.length_m.hypot(b.width_m) / 2.0;
+            let half_cell = file.indoor().spacing_m / 2.0;
+            if reach >= half_cell {
+                return Err(c.error_at(
+                    &["robots", &idx, "model"],
+                    format!("\"{}\"", r.spec.model),
+                    format!(
+                        "a model whose footprint turns in place inside one grid cell: half its \
+                         diagonal under half the spacing, {half_cell} m ({} is {} x {} m, \
+                         half-diagonal {reach:.3} m)",
+                        r.spec.model, b.length_m, b.width_m
+                    ),
+                ));
+            }
+        }
         if matches!(r.spec.mission, MissionSpec::CoverageChild) {
             let parents = robots
                 .iter()
