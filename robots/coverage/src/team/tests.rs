@@ -515,3 +515,18 @@ fn an_image_carries_the_encoders_odometer() {
         "{sent:?} vs {expected} ({r:?})"
     );
 }
+
+/// A sure estimate corrects the dead-reckoned position only as far as its own error allows:
+/// a position 0.5 m from it moves along the line between them to 0.3 m (`TRUST_M`) from it;
+/// one within 0.3 m stays.
+#[test]
+fn a_sure_estimate_pulls_the_position_to_within_its_error_not_onto_itself() {
+    let e = [1.0, -0.5];
+    let moved = tour::within_trust([1.3, -0.1], e);
+    assert!(
+        (moved[0] - 1.18).abs() < 1e-12 && (moved[1] + 0.26).abs() < 1e-12,
+        "{moved:?}"
+    );
+    let near = [1.1, -0.3];
+    assert_eq!(tour::within_trust(near, e), near);
+}
