@@ -516,17 +516,17 @@ fn an_image_carries_the_encoders_odometer() {
     );
 }
 
-/// A sure estimate corrects the dead-reckoned position only as far as its own error allows:
-/// a position 0.5 m from it moves along the line between them to 0.3 m (`TRUST_M`) from it;
-/// one within 0.3 m stays.
+/// A sure estimate (particle spread under 0.25 m) corrects the dead-reckoned position only
+/// as far as its own error allows: a position 0.5 m from it moves along the line between them
+/// to 0.3 m (`TRUST_M`) from it; one within 0.3 m stays; an unsure estimate moves nothing.
 #[test]
 fn a_sure_estimate_pulls_the_position_to_within_its_error_not_onto_itself() {
-    let e = [1.0, -0.5];
-    let moved = tour::within_trust([1.3, -0.1], e);
+    let (e, far, near) = ([1.0, -0.5], [1.3, -0.1], [1.1, -0.3]);
+    let moved = tour::corrected(far, e, 0.1);
     assert!(
         (moved[0] - 1.18).abs() < 1e-12 && (moved[1] + 0.26).abs() < 1e-12,
         "{moved:?}"
     );
-    let near = [1.1, -0.3];
-    assert_eq!(tour::within_trust(near, e), near);
+    assert_eq!(tour::corrected(near, e, 0.1), near);
+    assert_eq!(tour::corrected(far, e, 0.3), far, "unsure");
 }

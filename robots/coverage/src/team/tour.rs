@@ -49,14 +49,19 @@ use hetsim_vision::Gray;
 /// Particle spread (weighted RMS distance to the estimate) under which the filter is sure of
 /// itself, metres: half the 0.5 m grid spacing.
 const SURE_M: f64 = 0.25;
-/// A sure estimate this far from the dead-reckoned position replaces it, metres: beyond the
-/// estimate's own 0.1-0.2 m error.
+/// How far a sure estimate may be from the position the child keeps, metres: beyond the
+/// estimate's own 0.1-0.2 m error; a position farther is moved to this distance.
 const TRUST_M: f64 = 0.3;
 
-/// `dead`, the dead-reckoned position, moved onto the circle of radius `TRUST_M` around a
-/// sure estimate `e` when it lies outside it: the least correction that leaves both within
-/// their errors (dead reckoning drifts, and the estimate may be `TRUST_M` off).
-pub(super) fn within_trust(dead: [f64; 2], e: [f64; 2]) -> [f64; 2] {
+/// The position the child keeps after an image: `dead`, the dead-reckoned position, unless the
+/// filter is sure of itself (`spread` under `SURE_M`) and its estimate `e` is more than
+/// `TRUST_M` away; then `dead` moved onto the circle of radius `TRUST_M` around `e`, the least
+/// correction that leaves both within their errors (dead reckoning drifts, and the estimate
+/// may be `TRUST_M` off).
+pub(super) fn corrected(dead: [f64; 2], e: [f64; 2], spread: f64) -> [f64; 2] {
+    if spread >= SURE_M {
+        return dead;
+    }
     let (dx, dy) = (dead[0] - e[0], dead[1] - e[1]);
     let off = dx.hypot(dy);
     if off <= TRUST_M {
@@ -171,9 +176,8 @@ impl Tour {
                 }
                 match self.path.get(self.at + 1) {
                     Some(&to) => {
-                        if self.filters[0].spread() < SURE_M {
-                            self.dead = within_trust(self.dead, self.filters[0].estimate());
-                        }
+                        let (e, spread) = (self.filters[0].estimate(), self.filters[0].spread());
+                        self.dead = corrected(self.dead, e, spread);
                         let from = self.dead;
                         self.at += 1;
                         Phase::Turning {
