@@ -334,9 +334,17 @@ fn a_ros2_recording_of_the_lab_decodes_with_exact_counts() {
         .find(|t| t.child_frame_id == "parent/laser")
         .expect("the laser's mount on /tf_static");
     assert_eq!(laser.header.frame_id, "parent/base_link");
+    let mount = s
+        .robots
+        .iter()
+        .find(|r| r.spec.name == "parent")
+        .and_then(|r| r.model.sensors.iter().find(|x| x.name() == "laser"))
+        .expect("the lab's parent has a laser")
+        .mount()
+        .xyz_m;
     assert_eq!(
         [laser.transform.position.x, laser.transform.position.z],
-        [0.15, 0.30],
+        [mount[0], mount[2]],
         "the robot file's mount"
     );
     for (_, data) in of(&r, "/child1/compass", "hetsim_msgs/msg/Compass") {
