@@ -185,8 +185,18 @@ fn laser_ranges_equal_the_distance_to_the_walls() {
         })
         .unwrap();
     assert_eq!(scan.ranges_m.len(), 481, "240 deg at 0.5 deg");
-    // Sensor at (0.25 + 0.15, -0.25) in a 10 x 8 m room; walls' inner faces at x = +-5, y = +-4.
-    let (ox, oy) = (0.40, -0.25);
+    // Sensor at (0.25 + its mount's x, -0.25) (the robot faces east) in a 10 x 8 m room;
+    // walls' inner faces at x = +-5, y = +-4.
+    let mount = s.robots[0]
+        .model
+        .sensors
+        .iter()
+        .find(|x| x.name() == "laser")
+        .unwrap()
+        .mount()
+        .xyz_m;
+    assert_eq!(mount[1], 0.0, "on the robot's axis");
+    let (ox, oy) = (0.25 + mount[0], -0.25);
     for (k, r) in scan.ranges_m.iter().enumerate() {
         let a = scan.angle_min_rad + k as f64 * scan.angle_increment_rad;
         let (c, s) = (a.cos(), a.sin());
