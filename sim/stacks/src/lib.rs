@@ -294,7 +294,7 @@ fn hat_tracker(scenario: &Scenario, robot: &ResolvedRobot) -> Option<hetsim_cove
         .find(|r| matches!(r.spec.mission, MissionSpec::CoverageChild) && r.model.body.hat)?;
     let b = &child.model.body;
     let hat_height_m = b.height_m + hetsim_scene::HAT_THICKNESS_M;
-    let hat_area_m2 = b.length_m * b.width_m * hetsim_scene::HAT_SCALE.powi(2);
+    let hat_size_m = [b.length_m, b.width_m].map(|side| side * hetsim_scene::HAT_SCALE);
     robot.model.sensors.iter().find_map(|s| match s {
         Sensor::OmniCamera {
             name,
@@ -319,7 +319,7 @@ fn hat_tracker(scenario: &Scenario, robot: &ResolvedRobot) -> Option<hetsim_cove
                 camera_height_m: mount.xyz_m[2],
                 hat_height_m,
                 min_pixels: 4,
-                hat_area_m2,
+                hat_size_m,
                 hat_thickness_m: hetsim_scene::HAT_THICKNESS_M,
             },
             range_m: coverage_params(scenario).r_los_m,

@@ -18,7 +18,7 @@ fn finder() -> HatFinder {
         camera_height_m: CAMERA_M,
         hat_height_m: HAT_M,
         min_pixels: 4,
-        hat_area_m2: HAT_SIDE_M * HAT_SIDE_M,
+        hat_size_m: [HAT_SIDE_M; 2],
         // Flat hats (`draw`); `draw_slabs` draws them with sides.
         hat_thickness_m: 0.0,
     }
@@ -265,4 +265,37 @@ fn a_slab_hats_sides_are_undone_to_within_one_rows_footprint() {
              {bound:.4})"
         );
     }
+}
+
+#[test]
+fn a_whole_slab_hat_is_found_as_far_as_it_spans_enough_pixels() {
+    // Its sides' shadow and the pixels along its outline grow with range: a bound of a fixed
+    // 1.6 times the top dropped these hats from 3 m on.
+    let slab = HatFinder {
+        hat_thickness_m: HAT_THICK_M,
+        ..finder()
+    };
+    for r in [1.0, 1.5, 2.0, 2.5, 3.0, 3.5, 4.0, 5.0, 6.0] {
+        for turn in [0.0, 0.6, 1.2] {
+            let h = [0.8 * r, 0.6 * r, turn];
+            let hats = slab.find(&draw_slabs(&slab, &[h]));
+            assert_eq!(hats.len(), 1, "{h:?}: {hats:?}");
+            let area = hats[0].area_m2;
+            assert!(
+                area <= slab.largest_whole_m2(r) && area >= slab.top_area_m2(),
+                "{h:?}: {area}"
+            );
+            // Placed on its own top: within half its side of the centre.
+            let [x, y] = hats[0].position_m;
+            let off = (x - h[0]).hypot(y - h[1]);
+            assert!(off < HAT_SIDE_M / 2.0, "{h:?}: {off:.4} m off");
+        }
+    }
+    // Two touching hats are still no hat where the bound is below twice the top.
+    assert!(slab.largest_whole_m2(1.75) < 2.0 * slab.top_area_m2());
+    let pair = slab.find(&draw_slabs(
+        &slab,
+        &[[1.4, 0.3, 0.0], [1.4, 0.3 + HAT_SIDE_M, 0.0]],
+    ));
+    assert!(pair.is_empty(), "{pair:?}");
 }
