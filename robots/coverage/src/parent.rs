@@ -51,7 +51,7 @@ use crate::map::{Map, Vertex};
 use crate::mcl::{Mcl, MclParams};
 use crate::report::{DatabaseImage, TeamReport, TEAM_ARTIFACT};
 use crate::team::{Order, TeamMsg};
-use crate::visibility::line_of_sight;
+use crate::visibility::{segment_open, FINE};
 use crate::{plan, CoverageParams, Direction, Plan, ViewRule};
 use hetsim_msgs::{
     Artifact, Command, CoverageMission, InboxGuard, InputError, Mission, Outgoing, Pose,

@@ -58,28 +58,41 @@ pub(crate) fn in_view_at(
     if angle > half + widen + 1e-12 {
         return false;
     }
-    let rho = disc_m / map.cell_m;
-    let (px, py) = (-vy / len * rho, vx / len * rho);
-    let fine = |x: f64| (x * FINE as f64).round() as i64;
-    let apex = (fine(from[0]), fine(from[1]));
+    let apex = fine(from);
+    across_sight(from, at, disc_m / map.cell_m).any(|p| segment_open(map, apex, p, FINE))
+}
+
+/// A position in cells on [`segment_open`]'s lattice of [`FINE`] points per cell.
+pub(super) fn fine(p: [f64; 2]) -> (i64, i64) {
+    let f = |x: f64| (x * FINE as f64).round() as i64;
+    (f(p[0]), f(p[1]))
+}
+
+/// The points, on [`FINE`]'s lattice, of the diameter of the disc of radius `rho` (cells)
+/// around `at` across the sight line from `from`: its centre first, then the diameter's
+/// points from the ends inwards, every 1/16 cell or less. Where `at` is `from`, the centre.
+pub(super) fn across_sight(
+    from: [f64; 2],
+    at: [f64; 2],
+    rho: f64,
+) -> impl Iterator<Item = (i64, i64)> {
+    let (vx, vy) = (at[0] - from[0], at[1] - from[1]);
+    let len = vx.hypot(vy);
+    let (px, py) = if len > 0.0 {
+        (-vy / len * rho, vx / len * rho)
+    } else {
+        (0.0, 0.0)
+    };
     let steps = (rho * ALONG).ceil().max(1.0) as usize;
-    // The centre first, then the diameter's points from the ends inwards.
     std::iter::once(0.0)
-        .chain((0..steps).map(|k| 1.0 - k as f64 / steps as f64))
+        .chain((0..steps).map(move |k| 1.0 - k as f64 / steps as f64))
         .flat_map(|f| [f, -f])
-        .any(|f| {
-            segment_open(
-                map,
-                apex,
-                (fine(at[0] + f * px), fine(at[1] + f * py)),
-                FINE,
-            )
-        })
+        .map(move |f| fine([at[0] + f * px, at[1] + f * py]))
 }
 
 impl ParentStack {
     /// A position in metres in the map's cells.
-    fn in_cells(&self, p: [f64; 2]) -> [f64; 2] {
+    pub(super) fn in_cells(&self, p: [f64; 2]) -> [f64; 2] {
         let g = &self.mission.grid;
         [
             (p[0] - g.origin_x) / g.cell_m,

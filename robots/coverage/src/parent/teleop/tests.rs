@@ -1,0 +1,81 @@
+//! When the parent expects to see a child: a hat behind an obstacle's edge is not a lost
+//! child.
+
+use super::*;
+use crate::visibility::line_of_sight;
+use hetsim_msgs::{pose_from_xyz_rpy, CoverageMission, OccupancyGrid};
+use hetsim_vision::hats::{HatFinder, Panorama};
+
+/// A 5 x 3 m room of 0.5 m cells with one occupied cell, (5, 2): x 2.5-3.0 m, y 1.0-1.5 m.
+/// The parent stands at (3.75, 1.75) with the lab's hat tracker (0.108 m hats), one child
+/// at `child`.
+fn parent_with_child_at(child: [f64; 2]) -> ParentStack {
+    let mut occupied = vec![false; 60];
+    occupied[2 * 10 + 5] = true;
+    let grid = OccupancyGrid {
+        origin_x: 0.0,
+        origin_y: 0.0,
+        cell_m: 0.5,
+        cols: 10,
+        rows: 6,
+        occupied,
+    };
+    let mission = CoverageMission {
+        grid,
+        children: vec![("child1".into(), (0, 0))],
+        r_los_m: 2.0,
+        direction: "east".into(),
+        child_fov_deg: 80.0,
+        view_margin_deg: 10.0,
+        view_margin_m: 0.04,
+        parent_radius_m: 0.2,
+        child_radius_m: 0.06,
+        f_factor: 2.0,
+        child_speed_mps: 0.15,
+        parent_start: [3.75, 1.75, 0.0],
+        localize_steps: 0,
+    };
+    let mut p = super::super::planned_test_parent(mission);
+    p.params.hat_tracker = Some(HatTracker {
+        camera: "omni".into(),
+        mount: [0.0; 3],
+        finder: HatFinder {
+            panorama: Panorama {
+                width: 780,
+                height: 580,
+                elevation_rad: [(-75f64).to_radians(), 15f64.to_radians()],
+            },
+            camera_height_m: 1.45,
+            hat_height_m: 0.124,
+            min_pixels: 4,
+            hat_size_m: [0.108; 2],
+            hat_thickness_m: 0.024,
+        },
+        range_m: 2.0,
+        gate_m: 0.3,
+    });
+    p.pose = Some(pose_from_xyz_rpy([3.75, 1.75, 0.0], [0.0; 3]));
+    p.children[0].estimate = child;
+    p
+}
+
+#[test]
+fn a_child_whose_hat_an_obstacle_may_cut_is_not_expected_in_view() {
+    // On its vertex, 1.5 m west: the sight lines to its hat, and to where it may drive in
+    // half a second, pass 0.13 m or more above the obstacle's top edge.
+    assert!(parent_with_child_at([2.25, 1.75]).expected_in_view(0));
+    // 0.2 m south of it, on its way to the vertex below: its cell and the parent's still see
+    // each other centre to centre (what the parent tested until 2026-11-29), but the line
+    // to the hat's south edge crosses the obstacle, which would cut the hat.
+    let p = parent_with_child_at([2.25, 1.55]);
+    let vertex = |x: f64, y: f64| p.vertex_at([x, y]).unwrap();
+    assert!(line_of_sight(
+        &p.map,
+        vertex(3.75, 1.75),
+        vertex(2.25, 1.55)
+    ));
+    assert!(!p.expected_in_view(0));
+    // North of the parent, nothing between: in view up to r_los less 0.15 m.
+    assert!(parent_with_child_at([3.75, 2.75]).expected_in_view(0));
+    assert!(!parent_with_child_at([1.75, 1.75]).expected_in_view(0));
+}
