@@ -31,8 +31,9 @@
 //!   compass, then drives straight for the distance by its encoders), re-aims it once when it
 //!   is within 0.2 m of the goal, and, when the drive is done, accepts the position if it is
 //!   within `arrive_m` of the goal or orders a correction (at most three).
-//! * **Out of view.** A child the parent should not see (farther than r_los, or no line of
-//!   sight on the map; this happens in the following behaviour) is driven open loop: its
+//! * **Out of view.** A child the parent should not see (farther than r_los, or its hat not
+//!   wholly in sight on the map: `teleop.rs`, `expected_in_view`; this happens in the
+//!   following behaviour) is driven open loop: its
 //!   position is dead-reckoned from the drive it reported, until the tracker sees it again;
 //!   an idle child found more than `2 arrive_m` from its planned vertex is driven back there.
 //! * **Stuck.** A tracked child whose drive should long be over is driven again from where

@@ -280,11 +280,6 @@ fn a_whole_slab_hat_is_found_as_far_as_it_spans_enough_pixels() {
             let h = [0.8 * r, 0.6 * r, turn];
             let hats = slab.find(&draw_slabs(&slab, &[h]));
             assert_eq!(hats.len(), 1, "{h:?}: {hats:?}");
-            let area = hats[0].area_m2;
-            assert!(
-                area <= slab.largest_whole_m2(r) && area >= slab.top_area_m2(),
-                "{h:?}: {area}"
-            );
             // Placed on its own top: within half its side of the centre.
             let [x, y] = hats[0].position_m;
             let off = (x - h[0]).hypot(y - h[1]);

@@ -62,11 +62,14 @@ fn parent_with_child_at(child: [f64; 2]) -> ParentStack {
 #[test]
 fn a_child_whose_hat_an_obstacle_may_cut_is_not_expected_in_view() {
     // On its vertex, 1.5 m west: the sight lines to its hat, and to where it may drive in
-    // half a second, pass 0.13 m or more above the obstacle's top edge.
+    // half a second (0.151 m across the sight line), pass 0.12 m or more above the
+    // obstacle's top edge.
     assert!(parent_with_child_at([2.25, 1.75]).expected_in_view(0));
     // 0.2 m south of it, on its way to the vertex below: its cell and the parent's still see
-    // each other centre to centre (what the parent tested until 2026-11-29), but the line
-    // to the hat's south edge crosses the obstacle, which would cut the hat.
+    // each other centre to centre (what the parent tested until 2026-11-29). The line to
+    // its hat's south edge clears the obstacle by about 2 cm, but where the child may have
+    // driven in the half second it may go unseen (0.075 m further at 0.15 m/s), it crosses
+    // the obstacle, which would cut the hat.
     let p = parent_with_child_at([2.25, 1.55]);
     let vertex = |x: f64, y: f64| p.vertex_at([x, y]).unwrap();
     assert!(line_of_sight(
