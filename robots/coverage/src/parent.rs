@@ -468,6 +468,46 @@ impl ParentStack {
     }
 }
 
+/// A coverage mission on a room of `cols` x `rows` cells of 0.5 m from the origin, free but
+/// for the cells `occupied` ((col, row)), with `children` at their vertices and the parent
+/// starting at `parent_start` (x, y, yaw): r_los 2 m, 80 deg cameras looking east, the lab's
+/// view margins (10 deg, 0.04 m), the lab's robot sizes, no localization steps (the
+/// parent-side unit tests' common mission; tests change fields as they need).
+#[cfg(test)]
+fn test_mission(
+    [cols, rows]: [usize; 2],
+    occupied: &[(usize, usize)],
+    children: &[(&str, (usize, usize))],
+    parent_start: [f64; 3],
+) -> CoverageMission {
+    let mut cells = vec![false; cols * rows];
+    for &(c, r) in occupied {
+        cells[r * cols + c] = true;
+    }
+    CoverageMission {
+        grid: hetsim_msgs::OccupancyGrid {
+            origin_x: 0.0,
+            origin_y: 0.0,
+            cell_m: 0.5,
+            cols,
+            rows,
+            occupied: cells,
+        },
+        children: children.iter().map(|&(n, v)| (n.into(), v)).collect(),
+        r_los_m: 2.0,
+        direction: "east".into(),
+        child_fov_deg: 80.0,
+        view_margin_deg: 10.0,
+        view_margin_m: 0.04,
+        parent_radius_m: 0.2,
+        child_radius_m: 0.06,
+        f_factor: 2.0,
+        child_speed_mps: 0.15,
+        parent_start,
+        localize_steps: 0,
+    }
+}
+
 /// A parent for `mission` with a test pilot, standing at the mission's start, planned (the
 /// parent-side unit tests' common setup).
 #[cfg(test)]

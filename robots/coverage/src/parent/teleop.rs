@@ -69,8 +69,7 @@ impl ParentStack {
         };
         let here = [pose.translation.vector.x, pose.translation.vector.y];
         let est = self.children[i].estimate;
-        let d = dist(here, est);
-        if d > self.coverage.r_los_m - 0.15 {
+        if dist(here, est) > self.coverage.r_los_m - 0.15 {
             return false;
         }
         let hat_m = self.params.hat_tracker.as_ref().map_or(0.0, |t| {

@@ -5,7 +5,7 @@
 use super::super::dist;
 use super::*;
 use crate::report::DatabaseImage;
-use hetsim_msgs::{CoverageMission, OccupancyGrid, RobotStack};
+use hetsim_msgs::{CoverageMission, RobotStack};
 
 const S: u64 = 1_000_000_000;
 const STEPS: usize = 3;
@@ -13,28 +13,11 @@ const STEPS: usize = 3;
 /// A parent whose mapping of a free 4 x 3 room of 0.5 m cells (8 x 6) is done: it stands on
 /// (1, 0), beside its one child at (0, 0); one image in the database.
 fn mapped_parent() -> ParentStack {
-    let grid = OccupancyGrid {
-        origin_x: 0.0,
-        origin_y: 0.0,
-        cell_m: 0.5,
-        cols: 8,
-        rows: 6,
-        occupied: vec![false; 48],
-    };
     let mission = CoverageMission {
-        grid,
-        children: vec![("child1".into(), (0, 0))],
-        r_los_m: 2.0,
-        direction: "east".into(),
-        child_fov_deg: 80.0,
         view_margin_deg: 0.0,
         view_margin_m: 0.0,
-        parent_radius_m: 0.2,
-        child_radius_m: 0.06,
-        f_factor: 2.0,
-        child_speed_mps: 0.15,
-        parent_start: [0.75, 0.25, 0.0],
         localize_steps: STEPS,
+        ..super::super::test_mission([8, 6], &[], &[("child1", (0, 0))], [0.75, 0.25, 0.0])
     };
     let mut p = super::super::planned_test_parent(mission);
     p.report.database.push(DatabaseImage {

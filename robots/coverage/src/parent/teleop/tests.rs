@@ -3,38 +3,15 @@
 
 use super::*;
 use crate::visibility::line_of_sight;
-use hetsim_msgs::{pose_from_xyz_rpy, CoverageMission, OccupancyGrid};
+use hetsim_msgs::pose_from_xyz_rpy;
 use hetsim_vision::hats::{HatFinder, Panorama};
 
 /// A 5 x 3 m room of 0.5 m cells with one occupied cell, (5, 2): x 2.5-3.0 m, y 1.0-1.5 m.
 /// The parent stands at (3.75, 1.75) with the lab's hat tracker (0.108 m hats), one child
 /// at `child`.
 fn parent_with_child_at(child: [f64; 2]) -> ParentStack {
-    let mut occupied = vec![false; 60];
-    occupied[2 * 10 + 5] = true;
-    let grid = OccupancyGrid {
-        origin_x: 0.0,
-        origin_y: 0.0,
-        cell_m: 0.5,
-        cols: 10,
-        rows: 6,
-        occupied,
-    };
-    let mission = CoverageMission {
-        grid,
-        children: vec![("child1".into(), (0, 0))],
-        r_los_m: 2.0,
-        direction: "east".into(),
-        child_fov_deg: 80.0,
-        view_margin_deg: 10.0,
-        view_margin_m: 0.04,
-        parent_radius_m: 0.2,
-        child_radius_m: 0.06,
-        f_factor: 2.0,
-        child_speed_mps: 0.15,
-        parent_start: [3.75, 1.75, 0.0],
-        localize_steps: 0,
-    };
+    let mission =
+        super::super::test_mission([10, 6], &[(5, 2)], &[("child1", (0, 0))], [3.75, 1.75, 0.0]);
     let mut p = super::super::planned_test_parent(mission);
     p.params.hat_tracker = Some(HatTracker {
         camera: "omni".into(),

@@ -5,7 +5,7 @@ use super::super::{dist, Task};
 use super::*;
 use crate::visibility::in_view;
 use crate::Direction;
-use hetsim_msgs::{pose_from_xyz_rpy, CoverageMission, OccupancyGrid};
+use hetsim_msgs::pose_from_xyz_rpy;
 
 fn params() -> CoverageParams {
     CoverageParams {
@@ -65,29 +65,8 @@ fn at_vertex_centres_the_point_test_is_the_planner_s() {
 
 /// A parent with two children on a free 5 x 3 m room of 0.5 m cells, planned.
 fn planned_parent() -> ParentStack {
-    let grid = OccupancyGrid {
-        origin_x: 0.0,
-        origin_y: 0.0,
-        cell_m: 0.5,
-        cols: 10,
-        rows: 6,
-        occupied: vec![false; 60],
-    };
-    let mission = CoverageMission {
-        grid,
-        children: vec![("child1".into(), (0, 0)), ("child2".into(), (0, 5))],
-        r_los_m: 2.0,
-        direction: "east".into(),
-        child_fov_deg: 80.0,
-        view_margin_deg: 10.0,
-        view_margin_m: 0.04,
-        parent_radius_m: 0.2,
-        child_radius_m: 0.06,
-        f_factor: 2.0,
-        child_speed_mps: 0.15,
-        parent_start: [0.25, 1.25, 0.0],
-        localize_steps: 0,
-    };
+    let children = [("child1", (0, 0)), ("child2", (0, 5))];
+    let mission = super::super::test_mission([10, 6], &[], &children, [0.25, 1.25, 0.0]);
     super::super::planned_test_parent(mission)
 }
 
