@@ -59,3 +59,33 @@ fn a_child_whose_hat_an_obstacle_may_cut_is_not_expected_in_view() {
     assert!(parent_with_child_at([3.75, 2.75]).expected_in_view(0));
     assert!(!parent_with_child_at([1.75, 1.75]).expected_in_view(0));
 }
+
+#[test]
+fn a_driving_child_is_expected_in_view_only_where_it_may_have_got_to() {
+    // Last seen on its vertex 1.5 m west of the parent, in plain view, driving south
+    // towards (2.25, 0.75), which the obstacle hides from the parent.
+    let driving = |unseen_s: f64| {
+        let mut p = parent_with_child_at([2.25, 1.75]);
+        p.now_ns = 100_000_000_000;
+        p.children[0].last_fix_ns = Some(p.now_ns - (unseen_s * 1e9) as u64);
+        p.children[0].task = Task::Move {
+            goal: [2.25, 0.75],
+            reaimed: false,
+            corrections: 0,
+            due_ns: p.now_ns + 10_000_000_000,
+            from: [2.25, 1.75],
+            blind: false,
+        };
+        p
+    };
+    let hidden = |p: &ParentStack, at: [f64; 2]| !p.whole_hat_in_sight([3.75, 1.75], at);
+    // Unseen for 0.1 s it has driven 0.015 m at 0.15 m/s: still in plain view.
+    assert!(driving(0.1).expected_in_view(0));
+    // Unseen for 3 s it may be 0.45 m on, at (2.25, 1.30), where the obstacle may hide
+    // its hat (the sight line to it crosses the obstacle's top edge at y = 1.525 m, less
+    // than the hat's half-diagonal and half a second's drive across it).
+    let p = driving(3.0);
+    assert!(!hidden(&p, [2.25, 1.75]));
+    assert!(hidden(&p, [2.25, 1.30]));
+    assert!(!p.expected_in_view(0));
+}
