@@ -50,8 +50,8 @@
 //!   0.67-0.80 of the top in two or more panoramas running (0.67-1.13 over a second, the
 //!   sides unlit). Such blobs at 3 m and beyond placed children 0.013 m from the truth
 //!   (median; 95 % within 0.041 m) against 0.015 m (0.034 m) for blobs of 0.8 and more.
-//!   Nor are blobs above the most a whole hat can
-//!   measure at their range (two hats run together): 1.6 times its top near the camera, and
+//!   Nor are blobs above the most a whole hat can measure at their range (two hats run
+//!   together): 1.6 times its top near the camera, and
 //!   farther out its top, plus its sides' shadow `ρ t / (d + t)` times its diagonal, plus a
 //!   ring of one pixel's footprint around its outline (an edge pixel partly on the hat,
 //!   blended, can still be orange), whichever is larger. Both the shadow and the footprint
@@ -173,8 +173,9 @@ impl HatFinder {
     /// the module's decisions), square metres: 0 where a pixel's footprint has no bound.
     pub fn smallest_whole_m2(&self, range_m: f64) -> f64 {
         let [l, w] = self.hat_size_m;
+        let top = self.top_area_m2();
         let half_ring = (l + w) * self.pixel_footprint_m(range_m);
-        (0.8 * l * w).min(l * w - half_ring).max(0.0)
+        (0.8 * top).min(top - half_ring).max(0.0)
     }
 
     /// One pixel's footprint on the hats' plane at floor range `range_m`, metres: the larger

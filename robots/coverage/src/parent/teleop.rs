@@ -51,7 +51,8 @@ impl ParentStack {
 
     /// Whether the parent should see child `i` where it believes the child is: within r_los
     /// (less 0.15 m), with its whole hat in sight. The hat tracker drops a hat partly hidden
-    /// (under 0.8 of its top), so a hat behind an obstacle's edge is not a lost child. In
+    /// (under the least a whole hat measures at its range), so a hat behind an obstacle's
+    /// edge is not a lost child. In
     /// sight: the sight lines from the parent to the estimate, and to points across the
     /// sight line out to the hat's half-diagonal plus how far the child drives in the time
     /// it may go unseen before it counts as lost ([`ParentParams::lost_after_ns`]), sampled
@@ -66,7 +67,10 @@ impl ParentStack {
     ///
     /// A driving child is expected in view only if it is wherever it may have got to since its
     /// last fix: every point from its estimate towards its goal, as far as it drives in that
-    /// time, sampled every 1/16 cell, must pass the test above. Until 2026-11-29 only the
+    /// time, sampled on the sight test's fine lattice (every 1/1000 cell; the test runs only
+    /// for a driving child the tracker misses, and stops at the first point out of sight),
+    /// must pass the test above. A child never fixed is tested at its estimate alone (it
+    /// is not counted as lost then: [`Self::untracked_since`]). Until 2026-11-29 only the
     /// estimate was tested, which stays where the child was last seen: in `indoor-team` with
     /// r_los 4 m (GL) the parent, turning on its vertex, found a child it had not seen for
     /// 2 s in view at its last fix and stopped it as lost, while the child had driven on

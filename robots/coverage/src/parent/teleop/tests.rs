@@ -81,11 +81,15 @@ fn a_driving_child_is_expected_in_view_only_where_it_may_have_got_to() {
     let hidden = |p: &ParentStack, at: [f64; 2]| !p.whole_hat_in_sight([3.75, 1.75], at);
     // Unseen for 0.1 s it has driven 0.015 m at 0.15 m/s: still in plain view.
     assert!(driving(0.1).expected_in_view(0));
-    // Unseen for 3 s it may be 0.45 m on, at (2.25, 1.30), where the obstacle may hide
-    // its hat (the sight line to it crosses the obstacle's top edge at y = 1.525 m, less
-    // than the hat's half-diagonal and half a second's drive across it).
+    // Unseen for 3 s it may be 0.45 m on, at (2.25, 1.30), where the obstacle hides it
+    // (the sight line to it passes x = 3.0 m at y = 1.525 m, 0.025 m above the obstacle's
+    // corner, and enters its top edge at x = 2.92 m). The points across the sight line
+    // (the hat's half-diagonal and half a second's drive) are cut from about 0.15 m on,
+    // about a second's drive.
     let p = driving(3.0);
     assert!(!hidden(&p, [2.25, 1.75]));
     assert!(hidden(&p, [2.25, 1.30]));
     assert!(!p.expected_in_view(0));
+    assert!(driving(0.8).expected_in_view(0));
+    assert!(!driving(1.2).expected_in_view(0));
 }
