@@ -223,10 +223,10 @@ fn with_only_the_starting_points_checked_every_child_added_maps_faster() {
 /// share): "by deploying more child robots, the mapping timesteps generally decrease due to
 /// the parallel task execution. By contrast, the coordination timesteps grow". Under the
 /// paper's view rule (no robot in view at any grab), mapping falls from 1 to 2 to 4
-/// children, coordination grows from 1 to 8, and more than one child gives the shortest
-/// mission.
+/// children (with 8 it rises again: `results/coverage-tables.md`), coordination grows from
+/// 1 to 8, and more than one child gives the shortest mission.
 #[test]
-fn more_children_map_faster_and_take_longer_to_coordinate() {
+fn up_to_four_children_map_faster_and_eight_take_longer_to_coordinate() {
     let runs: Vec<(usize, usize, usize)> = [1, 2, 4, 8]
         .into_iter()
         .map(|children| {

@@ -118,6 +118,22 @@ fn metrics(dir: &Path) -> Value {
     serde_json::from_slice(&std::fs::read(dir.join("metrics.json")).unwrap()).unwrap()
 }
 
+/// The parent localizes from its laser: its error stays below 0.08 m (its 0.28 m body
+/// leaves 0.11 m on each side of a 0.5 m cell, 0.08 m when it was 0.34 m; beyond that it
+/// would graze the furniture), and its heading within 10 degrees (a corner 0.198 m out
+/// moves by under 0.04 m).
+fn assert_parent_localization(loc: &Value) {
+    assert!(loc["estimates"].as_u64().unwrap() > 100, "{loc}");
+    assert!(
+        loc["position_error_max_m"].as_f64().unwrap() < 0.08,
+        "{loc}"
+    );
+    assert!(
+        loc["heading_error_max_deg"].as_f64().unwrap() < 10.0,
+        "{loc}"
+    );
+}
+
 /// The parent tracks its children by the hats in its panoramas: over more than `min_fixes`
 /// fixes, placed by its own localization, the error is within the seed's tracker accuracy
 /// (0.04 +- 0.02 m within r_los: mean under 0.04 m, 95 % under 0.08 m, its mean plus two
@@ -408,20 +424,7 @@ fn lab_outputs(out: &Path) {
         t["heading_error_deg"]["mean"].as_f64().unwrap() < 8.0,
         "{t}"
     );
-    // The parent localizes from its laser: its error stays below 0.08 m (its 0.28 m body
-    // leaves 0.11 m on each side of a 0.5 m cell, 0.08 m when it was 0.34 m; beyond that it
-    // would graze the furniture), and its heading within 10 degrees (a corner 0.198 m out
-    // moves by under 0.04 m).
-    let loc = &t["parent_localization"];
-    assert!(loc["estimates"].as_u64().unwrap() > 100, "{loc}");
-    assert!(
-        loc["position_error_max_m"].as_f64().unwrap() < 0.08,
-        "{loc}"
-    );
-    assert!(
-        loc["heading_error_max_deg"].as_f64().unwrap() < 10.0,
-        "{loc}"
-    );
+    assert_parent_localization(&t["parent_localization"]);
     assert_tracking(&t["tracking"], 1000);
     // Mission time in the range of the seed's 38.4 min (our children turn faster).
     let minutes = t["mission_min"].as_f64().unwrap();
@@ -547,6 +550,7 @@ fn golden_indoor_team_mission() {
             assert_eq!(t["images_with_robot_in_view"], 0, "{t}");
             assert_eq!(t["images_with_distant_robot_in_view"], 0, "{t}");
             assert_tracking(&t["tracking"], 10_000);
+            assert_parent_localization(&t["parent_localization"]);
             // The first child that can move after the mapping (child2 since the mapping
             // rounds that end when a child is idle; child1 after the planner changes of
             // 2026-11; child2 before them, when child1 ended boxed in by the others) drives
