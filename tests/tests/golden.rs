@@ -123,15 +123,10 @@ fn metrics(dir: &Path) -> Value {
 /// would graze the furniture), and its heading within 10 degrees (a corner 0.198 m out
 /// moves by under 0.04 m).
 fn assert_parent_localization(loc: &Value) {
+    let (max_m, max_deg) = (&loc["position_error_max_m"], &loc["heading_error_max_deg"]);
     assert!(loc["estimates"].as_u64().unwrap() > 100, "{loc}");
-    assert!(
-        loc["position_error_max_m"].as_f64().unwrap() < 0.08,
-        "{loc}"
-    );
-    assert!(
-        loc["heading_error_max_deg"].as_f64().unwrap() < 10.0,
-        "{loc}"
-    );
+    assert!(max_m.as_f64().unwrap() < 0.08, "{loc}");
+    assert!(max_deg.as_f64().unwrap() < 10.0, "{loc}");
 }
 
 /// The parent tracks its children by the hats in its panoramas: over more than `min_fixes`
