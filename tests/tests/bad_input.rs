@@ -458,60 +458,45 @@ fn parent_scenario() -> String {
         )
 }
 
-#[test]
-fn unknown_view_rule() {
-    let text = format!("{SCENARIO}\n[coverage]\nviews = \"some_grabs\"\n");
+/// `line` in a `[coverage]` table appended to `base` is refused, naming its line, field and
+/// value and what is allowed.
+fn assert_coverage_refused(base: &str, line: &str, allowed: &str) {
+    let text = format!("{base}\n[coverage]\n{line}\n");
     let (_, e, _d) = load(&text, None);
+    let (field, value) = line.split_once(" = ").unwrap();
+    let at = format!("coverage.{field}");
+    let value = value.trim_matches('"');
     assert_names(
         &e,
         "broken.toml",
-        line_of(&text, "views"),
-        "coverage.views",
-        "some_grabs",
-        "\"every_grab\" or \"start_points\"",
+        line_of(&text, field),
+        &at,
+        value,
+        allowed,
     );
 }
 
 #[test]
-fn localization_run_too_long() {
-    let text = format!("{SCENARIO}\n[coverage]\nlocalize_steps = 5000\n");
-    let (_, e, _d) = load(&text, None);
-    assert_names(
-        &e,
-        "broken.toml",
-        line_of(&text, "localize_steps"),
-        "coverage.localize_steps",
-        "5000",
-        "a number in [0, 1000]",
-    );
+fn coverage_values_out_of_range() {
+    assert_coverage_refused(SCENARIO, "views = \"some_grabs\"", "\"every_grab\" or");
+    assert_coverage_refused(SCENARIO, "localize_steps = 5000", "a number in [0, 1000]");
+    assert_coverage_refused(SCENARIO, "view_margin_m = 0.75", "a number in [0, 0.5]");
+    let one_of = "one of \"ours\", \"parent_a_point\"";
+    assert_coverage_refused(SCENARIO, "reading = \"eq6_some_choice\"", one_of);
 }
 
+/// A mission the simulator runs renders its images and is the shipped planner: "start_points"
+/// (which checks no grab) and the other readings of the open points are for grid plans only.
 #[test]
-fn view_margin_beyond_a_cell() {
-    let text = format!("{SCENARIO}\n[coverage]\nview_margin_m = 2.0\n");
-    let (_, e, _d) = load(&text, None);
-    assert_names(
-        &e,
-        "broken.toml",
-        line_of(&text, "view_margin_m"),
-        "coverage.view_margin_m",
-        "2",
-        "a number in [0, 0.5]",
-    );
-}
-
-#[test]
-fn paper_view_rule_in_a_mission_the_simulator_runs() {
-    // "start_points" checks no grab: a mission whose images are rendered must not use it.
-    let text = parent_scenario() + "\n[coverage]\nviews = \"start_points\"\n";
-    let (_, e, _d) = load(&text, None);
-    assert_names(
-        &e,
-        "broken.toml",
-        line_of(&text, "views"),
-        "coverage.views",
-        "start_points",
-        "\"every_grab\" in a scenario whose parent runs the mission",
+fn grid_planning_settings_in_a_mission_the_simulator_runs() {
+    let parent = parent_scenario();
+    let only = "in a scenario whose parent runs the mission";
+    let views = format!("\"every_grab\" {only}");
+    assert_coverage_refused(&parent, "views = \"start_points\"", &views);
+    assert_coverage_refused(
+        &parent,
+        "reading = \"los_strict\"",
+        &format!("\"ours\" {only}"),
     );
 }
 

@@ -1,7 +1,8 @@
 //! Coverage-planning invariants on hundreds of seeded random maps from the indoor generator.
 
 use hetsim_core::Streams;
-use hetsim_coverage::{plan, validate, CoverageParams, Map, Plan, ViewRule, Visibility};
+use hetsim_coverage::select::select_parent_vertices;
+use hetsim_coverage::{plan, validate, CoverageParams, Map, Plan, Reading, ViewRule, Visibility};
 use hetsim_eval::coverage::plan_scenario;
 use hetsim_eval::sweep::load_sweep;
 use hetsim_scene::world::{generate_indoor, KeepClear};
@@ -28,10 +29,16 @@ fn open_map() -> Map {
 
 /// The plan for `children` on the open map from its centre, validated and complete.
 fn open_map_plan(children: usize, views: ViewRule) -> Plan {
+    open_map_plan_reading(children, views, Reading::Ours)
+}
+
+/// [`open_map_plan`] under another reading of Section IV's open points.
+fn open_map_plan_reading(children: usize, views: ViewRule, reading: Reading) -> Plan {
     let map = open_map();
     let params = CoverageParams {
         children,
         views,
+        reading,
         ..CoverageParams::default()
     };
     let p = plan(&map, &params, centre_vertex(&map), &[]).unwrap();
@@ -244,4 +251,60 @@ fn up_to_four_children_map_faster_and_eight_take_longer_to_coordinate() {
     assert!(coordination[3] > coordination[0], "{runs:?}");
     let best = runs.iter().min_by_key(|&&(_, m, c)| m + c).unwrap().0;
     assert!(best > 1, "{runs:?}");
+}
+
+/// `[coverage] reading` takes the planner's readings by their names, and no others.
+#[test]
+fn the_scenario_readings_are_the_planners() {
+    let names: Vec<&str> = Reading::ALL.iter().map(|r| r.name()).collect();
+    assert_eq!(names, hetsim_scene::READINGS.to_vec());
+    for r in Reading::ALL {
+        assert_eq!(Reading::from_name(r.name()), Some(r));
+    }
+}
+
+/// H from LOS_free (`h_from_los_free`) is a subset of Eq. 8's H, since LOS_free(v) is a
+/// subset of LOS(v): a transition with fewer than N vertices in Eq. 8's H has fewer in it
+/// too, so on the open map (where no child is ever unable to get to H, README) it makes at
+/// least as many following behaviours for every N. The tour does not depend on N or on H.
+#[test]
+fn h_from_los_free_follows_at_least_as_often_as_eq_8() {
+    for children in [1, 4, 8] {
+        let ours = open_map_plan(children, ViewRule::EveryGrab);
+        let free = open_map_plan_reading(children, ViewRule::EveryGrab, Reading::HFromLosFree);
+        assert_eq!(ours.parent_vertices, free.parent_vertices);
+        assert_eq!(ours.following_out_of_reach, 0);
+        assert!(
+            free.following_behaviours >= ours.following_behaviours,
+            "{children} children: {} against {}",
+            free.following_behaviours,
+            ours.following_behaviours
+        );
+    }
+}
+
+/// The readings of Eq. 6 and of the ties change the greedy choice itself (on the open map,
+/// where every score ties with its mirror images), and the choice still covers every vertex.
+#[test]
+fn the_readings_of_eq_6_and_of_the_ties_change_the_choice() {
+    let map = open_map();
+    let choose = |reading| {
+        let params = CoverageParams {
+            reading,
+            ..CoverageParams::default()
+        };
+        let vis = Visibility::compute(&map, &params);
+        let sel = select_parent_vertices(&map, &vis, &params);
+        assert!(sel.uncoverable.is_empty(), "{reading:?}");
+        sel.chosen
+    };
+    let ours = choose(Reading::Ours);
+    for reading in [
+        Reading::Eq6LastChoice,
+        Reading::Eq6EveryChoice,
+        Reading::TiesNearestLast,
+        Reading::TiesNearestAny,
+    ] {
+        assert_ne!(choose(reading), ours, "{reading:?}");
+    }
 }

@@ -60,7 +60,7 @@ use crate::map::{Map, Vertex};
 use crate::roadmap::stage_roadmaps;
 use crate::select::{select_parent_vertices, tour};
 use crate::visibility::{in_view, Visibility};
-use crate::{CoverageParams, ViewRule};
+use crate::{CoverageParams, Reading, ViewRule};
 use serde::Serialize;
 
 mod moves;

@@ -92,6 +92,68 @@ pub enum ViewRule {
     StartPoints,
 }
 
+/// Which reading of the points Section IV leaves open the planner takes. `Ours` is the
+/// reading decided and shipped (the README's "Coverage planning decisions"); each other one
+/// changes one decision, to measure its effect on Tables I-II (`hetsim report coverage`,
+/// `scenarios/sweeps/readings-*.toml`). For grid planning only: a scenario whose parent runs
+/// the mission is refused any but `Ours`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Reading {
+    /// The shipped reading.
+    #[default]
+    Ours,
+    /// LOS_free (Eq. 2) drops only the vertices whose view holds the parent's centre, not
+    /// its disc.
+    ParentAPoint,
+    /// LOS (Eq. 1) holds the vertices strictly closer than r_los, not those at r_los.
+    LosStrict,
+    /// Eq. 6's candidates are the vertices within f of the last parent vertex chosen, not of
+    /// any.
+    Eq6LastChoice,
+    /// Eq. 6 as written: within f of every parent vertex chosen so far.
+    Eq6EveryChoice,
+    /// Ties in the score go to the vertex nearest the last choice, then the lowest index.
+    TiesNearestLast,
+    /// Ties in the score go to the vertex nearest any choice, then the lowest index.
+    TiesNearestAny,
+    /// H (Eq. 8) is LOS_free(v_p^t) ∩ LOS_free(v_p^(t+1)), not LOS ∩ LOS.
+    HFromLosFree,
+}
+
+impl Reading {
+    /// Every reading, `Ours` first.
+    pub const ALL: [Reading; 8] = [
+        Reading::Ours,
+        Reading::ParentAPoint,
+        Reading::LosStrict,
+        Reading::Eq6LastChoice,
+        Reading::Eq6EveryChoice,
+        Reading::TiesNearestLast,
+        Reading::TiesNearestAny,
+        Reading::HFromLosFree,
+    ];
+
+    /// The name a scenario's `[coverage] reading` gives it.
+    pub fn name(self) -> &'static str {
+        match self {
+            Reading::Ours => "ours",
+            Reading::ParentAPoint => "parent_a_point",
+            Reading::LosStrict => "los_strict",
+            Reading::Eq6LastChoice => "eq6_last_choice",
+            Reading::Eq6EveryChoice => "eq6_every_choice",
+            Reading::TiesNearestLast => "ties_nearest_last",
+            Reading::TiesNearestAny => "ties_nearest_any",
+            Reading::HFromLosFree => "h_from_los_free",
+        }
+    }
+
+    /// The reading named `name`, if any.
+    pub fn from_name(name: &str) -> Option<Reading> {
+        Reading::ALL.into_iter().find(|r| r.name() == name)
+    }
+}
+
 /// Parameters of the team and the mapping.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct CoverageParams {
@@ -119,6 +181,9 @@ pub struct CoverageParams {
     /// Where robots are kept out of the images.
     #[serde(default)]
     pub views: ViewRule,
+    /// The reading of Section IV's open points.
+    #[serde(default)]
+    pub reading: Reading,
 }
 
 impl Default for CoverageParams {
@@ -134,6 +199,7 @@ impl Default for CoverageParams {
             children: 3,
             f_factor: 2.0,
             views: ViewRule::EveryGrab,
+            reading: Reading::Ours,
         }
     }
 }

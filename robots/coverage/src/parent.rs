@@ -53,7 +53,7 @@ use crate::mcl::{Mcl, MclParams};
 use crate::report::{DatabaseImage, TeamReport, TEAM_ARTIFACT};
 use crate::team::{Order, TeamMsg};
 use crate::visibility::{segment_open, FINE};
-use crate::{plan, CoverageParams, Direction, Plan, ViewRule};
+use crate::{plan, CoverageParams, Direction, Plan, Reading, ViewRule};
 use hetsim_msgs::{
     Artifact, Command, CoverageMission, InboxGuard, InputError, Mission, Outgoing, Pose,
     PoseStamped, RobotStack, SensorMsg, StackStatus,
@@ -278,6 +278,8 @@ impl ParentStack {
             f_factor: mission.f_factor,
             // Its children's images are the database: no robot in any of them.
             views: ViewRule::EveryGrab,
+            // The shipped reading (others are for grid planning only).
+            reading: Reading::Ours,
         };
         let children = mission
             .children

@@ -13,6 +13,8 @@
 //!   that would cover something new are considered; when none lies within f (a gap closed
 //!   off by obstacles), the whole map is searched.
 //! * Ties in the score go to the lowest vertex index (south-west first, row by row).
+//! * [`Reading`] names the other readings of Eq. 6 and of the ties, measured against these
+//!   in `results/coverage-tables.md`.
 //! * Vertices that no vertex's LOS_free contains cannot be imaged by any parent placement.
 //!   They are not turned into parent vertices to make the loop end; selection stops when no
 //!   candidate covers anything new, and they are reported as uncoverable.
@@ -22,7 +24,7 @@
 
 use crate::map::{Map, Vertex};
 use crate::visibility::Visibility;
-use crate::CoverageParams;
+use crate::{CoverageParams, Reading};
 
 /// The greedy selection, in the order vertices were chosen, and the vertices it cannot
 /// cover.
@@ -53,7 +55,12 @@ pub fn select_parent_vertices(map: &Map, vis: &Visibility, params: &CoveragePara
     }
     let mut done = vec![false; map.len()]; // covered, or a parent vertex
     let mut is_parent = vec![false; map.len()];
-    let mut near = vec![false; map.len()]; // within f of a chosen parent vertex
+    // Eq. 6's candidates: within f of some chosen parent vertex (of the last, or of every
+    // one, in the other readings), counted as how many chosen ones are that near.
+    let mut near = vec![0usize; map.len()];
+    // Ties: the distance to the nearest chosen vertex (the last one, or any).
+    let mut tie_m = vec![0.0f64; map.len()];
+    let reading = params.reading;
     let f = params.f_factor * params.r_los_m;
     let mut remaining = vertices.len();
     let mut chosen = Vec::new();
@@ -67,12 +74,24 @@ pub fn select_parent_vertices(map: &Map, vis: &Visibility, params: &CoveragePara
         }
     };
     while remaining > 0 {
+        let candidate = |v: Vertex| match reading {
+            Reading::Eq6LastChoice => chosen
+                .last()
+                .is_some_and(|&p| map.distance_m(v, p) <= f + 1e-9),
+            Reading::Eq6EveryChoice => near[v] == chosen.len(),
+            _ => near[v] > 0,
+        };
         let best = |restrict: bool| {
             vertices
                 .iter()
                 .copied()
-                .filter(|&v| !is_parent[v] && score[v] > 0 && (!restrict || near[v]))
-                .max_by(|&a, &b| score[a].cmp(&score[b]).then(b.cmp(&a)))
+                .filter(|&v| !is_parent[v] && score[v] > 0 && (!restrict || candidate(v)))
+                .max_by(|&a, &b| {
+                    score[a]
+                        .cmp(&score[b])
+                        .then(tie_m[b].total_cmp(&tie_m[a]))
+                        .then(b.cmp(&a))
+                })
         };
         let Some(p) = best(!chosen.is_empty()).or_else(|| best(false)) else {
             break;
@@ -88,11 +107,29 @@ pub fn select_parent_vertices(map: &Map, vis: &Visibility, params: &CoveragePara
         for dr in -reach..=reach {
             for dc in -reach..=reach {
                 if let Some(v) = map.at(pc as i64 + dc, pr as i64 + dr) {
-                    if !near[v] && map.distance_m(v, p) <= f + 1e-9 {
-                        near[v] = true;
+                    if map.distance_m(v, p) <= f + 1e-9 {
+                        near[v] += 1;
                     }
                 }
             }
+        }
+        match reading {
+            Reading::TiesNearestLast => {
+                for &v in &vertices {
+                    tie_m[v] = map.distance_m(v, p);
+                }
+            }
+            Reading::TiesNearestAny => {
+                for &v in &vertices {
+                    let d = map.distance_m(v, p);
+                    tie_m[v] = if chosen.len() == 1 {
+                        d
+                    } else {
+                        tie_m[v].min(d)
+                    };
+                }
+            }
+            _ => {}
         }
     }
     let uncoverable = vertices.into_iter().filter(|&v| !done[v]).collect();

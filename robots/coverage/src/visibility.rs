@@ -26,7 +26,7 @@
 //!   standing on `v`.
 
 use crate::map::{Map, Vertex};
-use crate::CoverageParams;
+use crate::{CoverageParams, Reading};
 
 /// Whether the segment between the centres of `a` and `b` touches only free cells.
 pub fn line_of_sight(map: &Map, a: Vertex, b: Vertex) -> bool {
@@ -207,7 +207,11 @@ impl Visibility {
         for dr in -reach..=reach {
             for dc in -reach..=reach {
                 let d = (dc as f64).hypot(dr as f64) * map.cell_m;
-                if (dc, dr) != (0, 0) && d <= params.r_los_m + 1e-9 {
+                let within = match params.reading {
+                    Reading::LosStrict => d < params.r_los_m - 1e-9,
+                    _ => d <= params.r_los_m + 1e-9,
+                };
+                if (dc, dr) != (0, 0) && within {
                     offsets.push((dc, dr));
                 }
             }
@@ -229,13 +233,17 @@ impl Visibility {
                 }
             }
         }
+        let parent_radius_m = match params.reading {
+            Reading::ParentAPoint => 0.0,
+            _ => params.parent_radius_m,
+        };
         let mut los_free = vec![Vec::new(); map.len()];
         for v in map.vertices() {
             los[v].sort_unstable();
             los_free[v] = los[v]
                 .iter()
                 .copied()
-                .filter(|&w| !in_view(map, params, w, v, params.parent_radius_m))
+                .filter(|&w| !in_view(map, params, w, v, parent_radius_m))
                 .collect();
         }
         Self { los, los_free }
@@ -259,6 +267,7 @@ mod tests {
             children: 3,
             f_factor: 2.0,
             views: crate::ViewRule::EveryGrab,
+            reading: crate::Reading::Ours,
         }
     }
 
@@ -506,5 +515,33 @@ mod tests {
         assert!(!segment_open(&m, (500, 500), (3484, 1547), 1000));
         assert!(!segment_open(&m, (500, 500), (3516, 1453), 1000));
         assert!(in_view(&m, &params(), w, u, 0.06));
+    }
+
+    #[test]
+    fn the_strict_radius_and_the_point_parent_drop_what_their_geometry_says() {
+        // An open 11 x 11 room, r_los 2 m = 4 cells, the centre vertex (5, 5). Lattice points
+        // within 4 cells: 48 besides the centre; the 4 on the axes exactly 4 cells out are
+        // what `los_strict` drops. A parent that is a point is in the east-facing 80 deg view
+        // of the vertices west of it within 40 deg of west: 1 / 3 / 5 / 1 at 1 / 2 / 3 / 4
+        // cells west (|dy| <= dx tan 40 deg, dx^2 + dy^2 <= 16), 10 in all.
+        let rows: Vec<String> = (0..11).map(|_| ".".repeat(11)).collect();
+        let refs: Vec<&str> = rows.iter().map(String::as_str).collect();
+        let m = Map::from_text(&refs, 0.5);
+        let v = m.at(5, 5).unwrap();
+        let with = |reading| {
+            let p = CoverageParams {
+                reading,
+                parent_radius_m: 0.14,
+                ..params()
+            };
+            let vis = Visibility::compute(&m, &p);
+            (vis.los[v].len(), vis.los_free[v].len())
+        };
+        let (los, free) = with(Reading::Ours);
+        assert_eq!(los, 48);
+        assert_eq!(with(Reading::LosStrict).0, 44);
+        assert_eq!(with(Reading::ParentAPoint), (48, 38));
+        // The shipped disc hides the parent from more of them.
+        assert!(free < 38, "{free}");
     }
 }

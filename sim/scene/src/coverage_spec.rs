@@ -31,6 +31,10 @@ pub struct CoverageSpec {
     /// (a relaxation for comparison: only a stage's starting points; refused in a mission the
     /// simulator runs, whose images are rendered).
     pub views: String,
+    /// Which reading of the points Section IV leaves open the planner takes: "ours" (the
+    /// shipped one) or one of [`READINGS`]'s others, each changing one decision (grid planning
+    /// only: refused in a mission the simulator runs).
+    pub reading: String,
     /// After mapping, the first child localizes from the database on a new path of this many
     /// grid moves, in lockstep (0: none). 20 by default.
     pub localize_steps: usize,
@@ -47,12 +51,51 @@ impl Default for CoverageSpec {
             children: None,
             f_factor: 2.0,
             views: "every_grab".to_string(),
+            reading: "ours".to_string(),
             localize_steps: 20,
         }
     }
 }
 
+/// The names `[coverage] reading` takes, "ours" first (`hetsim_coverage::Reading`'s; a test
+/// in `tests/tests/coverage.rs` keeps the two lists the same).
+pub const READINGS: [&str; 8] = [
+    "ours",
+    "parent_a_point",
+    "los_strict",
+    "eq6_last_choice",
+    "eq6_every_choice",
+    "ties_nearest_last",
+    "ties_nearest_any",
+    "h_from_los_free",
+];
+
 impl CoverageSpec {
+    /// `reading` is one of [`READINGS`], and only "ours" in a scenario whose parent
+    /// (`mission_parent`, by name) runs the mission.
+    pub(crate) fn check_reading(
+        &self,
+        c: &Checker,
+        mission_parent: Option<&str>,
+    ) -> Result<(), SceneError> {
+        let at = ["coverage", "reading"];
+        let allowed = READINGS
+            .iter()
+            .map(|r| format!("\"{r}\""))
+            .collect::<Vec<_>>()
+            .join(", ");
+        match (self.reading.as_str(), mission_parent) {
+            ("ours", _) => Ok(()),
+            (other, None) if READINGS.contains(&other) => Ok(()),
+            (other, Some(name)) if READINGS.contains(&other) => Err(c.error_at(
+                &at,
+                format!("\"{other}\" (robot {name} runs the mission)"),
+                "\"ours\" in a scenario whose parent runs the mission; the other readings only for grid planning (sweeps, `hetsim regress`)",
+            )),
+            (other, _) => Err(c.error_at(&at, format!("\"{other}\""), format!("one of {allowed}"))),
+        }
+    }
+
     /// `views` is one of the two rules, and `start_points` (which checks no grab) is not
     /// asked of a scenario whose parent (`mission_parent`, by name) runs the mission.
     pub(crate) fn check_views(

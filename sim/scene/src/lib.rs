@@ -27,6 +27,6 @@ pub use robot::{
 };
 pub use scenario::{
     BoxSpec, CommsSpec, CoverageSpec, IndoorSpec, MissionSpec, RobotSpec, ScenarioFile, Start,
-    VillageSpec, WorldKind, WorldSpec,
+    VillageSpec, WorldKind, WorldSpec, READINGS,
 };
 pub use source::{Source, SCHEMA_VERSION};

@@ -1,7 +1,7 @@
 //! Scenario files (`scenarios/*.toml`): the world, the robots placed in it and their missions.
 
 use crate::check::Checker;
-pub use crate::coverage_spec::CoverageSpec;
+pub use crate::coverage_spec::{CoverageSpec, READINGS};
 use crate::SceneError;
 use serde::{Deserialize, Serialize};
 
@@ -423,6 +423,7 @@ impl ScenarioFile {
                 .iter()
                 .find(|r| matches!(r.mission, MissionSpec::CoverageParent));
             cov.check_views(c, parent.map(|r| r.name.as_str()))?;
+            cov.check_reading(c, parent.map(|r| r.name.as_str()))?;
         }
         let at = |f: &'static str| ["comms", f];
         c.positive(&at("range_m"), self.comms.range_m)?;

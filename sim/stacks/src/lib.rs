@@ -11,7 +11,7 @@
 //! | `coverage_child` | | [`hetsim_coverage::ChildStack`] |
 
 use hetsim_core::Streams;
-use hetsim_coverage::{CoverageParams, Direction, ViewRule};
+use hetsim_coverage::{CoverageParams, Direction, Reading, ViewRule};
 use hetsim_msgs::{Mission, RobotStack};
 use hetsim_pilot::{
     lawnmower, GroundPilot, GroundPilotParams, HeliPilot, HeliPilotParams, Steering,
@@ -478,5 +478,7 @@ pub fn coverage_params(scenario: &Scenario) -> CoverageParams {
             "start_points" => ViewRule::StartPoints,
             _ => ViewRule::EveryGrab,
         },
+        // Checked when the scenario was loaded.
+        reading: Reading::from_name(&spec.reading).unwrap_or_default(),
     }
 }

@@ -246,8 +246,12 @@ impl Run<'_> {
         let mut in_h = vec![false; self.map.len()];
         let mut h_count = 0;
         let mut off_path = 0;
-        for &v in &self.vis.los[from] {
-            if v != to && self.vis.los[to].binary_search(&v).is_ok() {
+        let (here, next) = match self.params.reading {
+            Reading::HFromLosFree => (&self.vis.los_free[from], &self.vis.los_free[to]),
+            _ => (&self.vis.los[from], &self.vis.los[to]),
+        };
+        for &v in here {
+            if v != to && next.binary_search(&v).is_ok() {
                 in_h[v] = true;
                 h_count += 1;
                 off_path += usize::from(!on_path[v]);

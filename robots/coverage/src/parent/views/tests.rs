@@ -19,6 +19,7 @@ fn params() -> CoverageParams {
         children: 2,
         f_factor: 2.0,
         views: crate::ViewRule::EveryGrab,
+        reading: crate::Reading::Ours,
     }
 }
 

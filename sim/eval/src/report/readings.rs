@@ -1,0 +1,91 @@
+//! The readings tables of `results/coverage-tables.md`: Q and the following behaviours of
+//! Tables I-II under each reading of the points Section IV leaves open
+//! (`hetsim_coverage::Reading`), beside the shipped reading's and the paper's.
+
+use super::{mean_std, samples, within, PAPER_TABLE1, PAPER_TABLE2};
+use crate::sweep::{SummaryCell, SweepSummary};
+
+/// A column of the paper's Tables I-II: (axis value, Q mean, Q std, following mean,
+/// following std).
+type PaperColumn = (f64, f64, f64, f64, f64);
+
+/// The runs of one table: a sweep, the axis its columns are on and, for the readings
+/// sweeps, the axis that names the reading.
+pub(super) struct Runs<'a> {
+    pub summary: &'a SweepSummary,
+    pub column_axis: usize,
+    pub reading_axis: Option<usize>,
+}
+
+impl Runs<'_> {
+    /// The cells of column `x` under `reading` (any, for a sweep without a reading axis).
+    fn cells(&self, x: f64, reading: &str) -> Vec<&SummaryCell> {
+        self.summary
+            .cells
+            .iter()
+            .filter(|c| {
+                c.values[self.column_axis]
+                    .parse::<f64>()
+                    .is_ok_and(|v| (v - x).abs() < 1e-9)
+                    && self.reading_axis.is_none_or(|a| c.values[a] == reading)
+            })
+            .collect()
+    }
+}
+
+/// The six distinct columns of Tables I-II (Table II's 2 m is Table I's 20 %): which table's
+/// runs, and the paper's (column, Q mean, Q std, following mean, following std).
+fn columns() -> Vec<(usize, PaperColumn)> {
+    PAPER_TABLE1
+        .iter()
+        .map(|&p| (0, p))
+        .chain(PAPER_TABLE2.iter().filter(|p| p.0 != 2.0).map(|&p| (1, p)))
+        .collect()
+}
+
+/// Two tables, Q and following behaviours, with a row for the paper, the shipped reading
+/// (`ours`: Tables I-II's runs) and each reading of `others` (the readings sweeps' runs), and
+/// how many of the six columns lie within the paper's spread.
+pub(super) fn tables(ours: [Runs; 2], others: [Runs; 2], readings: &[&str]) -> String {
+    let cols = columns();
+    let header = "| reading | 0 % | 20 % | 40 % | 1 m | 4 m | 8 m | within |\n|---|---|---|---|---|---|---|---|\n";
+    let mut q_table = String::from(header);
+    let mut f_table = String::from(header);
+    let paper = |pick: fn(&PaperColumn) -> (f64, f64)| {
+        let cells: Vec<String> = cols
+            .iter()
+            .map(|(_, p)| {
+                let (m, s) = pick(p);
+                format!("{m:.1} ± {s:.1}")
+            })
+            .collect();
+        format!("| paper | {} | |\n", cells.join(" | "))
+    };
+    q_table.push_str(&paper(|p| (p.1, p.2)));
+    f_table.push_str(&paper(|p| (p.3, p.4)));
+    let rows = std::iter::once(("ours", &ours)).chain(readings.iter().map(|r| (*r, &others)));
+    for (name, runs) in rows {
+        let mut q_row = Vec::new();
+        let mut f_row = Vec::new();
+        let (mut q_fits, mut f_fits) = (0, 0);
+        for &(table, (x, pq, pqs, pf, pfs)) in &cols {
+            let cells = runs[table].cells(x, name);
+            let (q, qs) = mean_std(&samples(&cells, "parent_vertices"));
+            let (f, fs) = mean_std(&samples(&cells, "following"));
+            q_fits += usize::from(within(q, pq, pqs));
+            f_fits += usize::from(within(f, pf, pfs));
+            q_row.push(format!("{q:.1} ± {qs:.1}"));
+            f_row.push(format!("{f:.1} ± {fs:.1}"));
+        }
+        let n = cols.len();
+        q_table.push_str(&format!(
+            "| `{name}` | {} | {q_fits} of {n} |\n",
+            q_row.join(" | ")
+        ));
+        f_table.push_str(&format!(
+            "| `{name}` | {} | {f_fits} of {n} |\n",
+            f_row.join(" | ")
+        ));
+    }
+    format!("Q = abs(V_p):\n\n{q_table}\nFollowing behaviours:\n\n{f_table}\n")
+}
