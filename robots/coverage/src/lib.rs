@@ -111,11 +111,14 @@ pub enum Reading {
     /// Eq. 6's candidates are the vertices within f of the last parent vertex chosen, not of
     /// any.
     Eq6LastChoice,
-    /// Eq. 6 as written: within f of every parent vertex chosen so far.
+    /// Eq. 6 as written: within f of every parent vertex chosen so far (the whole map where
+    /// none of those covers anything new, as in `Ours`).
     Eq6EveryChoice,
-    /// Ties in the score go to the vertex nearest the last choice, then the lowest index.
+    /// Ties in the score go to the vertex nearest the last choice (straight-line distance),
+    /// then the lowest index.
     TiesNearestLast,
-    /// Ties in the score go to the vertex nearest any choice, then the lowest index.
+    /// Ties in the score go to the vertex nearest any choice (straight-line distance), then
+    /// the lowest index.
     TiesNearestAny,
     /// H (Eq. 8) is LOS_free(v_p^t) ∩ LOS_free(v_p^(t+1)), not LOS ∩ LOS.
     HFromLosFree,

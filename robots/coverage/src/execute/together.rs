@@ -240,9 +240,9 @@ impl Run<'_> {
         for &v in &parent_path {
             on_path[v] = true;
         }
-        // H (Eq. 8) as the paper defines it decides between the two; the children prefer
-        // its vertices off the parent's path, and stand on the path only where H off it is
-        // too small (the parent then moves them aside as it drives).
+        // H (Eq. 8; from LOS_free under `Reading::HFromLosFree`) decides between the two;
+        // the children prefer its vertices off the parent's path, and stand on the path only
+        // where H off it is too small (the parent then moves them aside as it drives).
         let mut in_h = vec![false; self.map.len()];
         let mut h_count = 0;
         let mut off_path = 0;
