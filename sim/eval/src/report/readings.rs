@@ -45,7 +45,8 @@ fn columns() -> Vec<(usize, PaperColumn)> {
 
 /// Two tables, Q and following behaviours, with a row for the paper, the shipped reading
 /// (`ours`: Tables I-II's runs) and each reading of `others` (the readings sweeps' runs), and
-/// how many of the six columns lie within the paper's spread.
+/// how many of the six columns lie within the paper's spread; then a sentence, computed from
+/// them, on which readings bring the most of the twelve entries within it.
 pub(super) fn tables(ours: [Runs; 2], others: [Runs; 2], readings: &[&str]) -> String {
     let cols = columns();
     let header = "| reading | 0 % | 20 % | 40 % | 1 m | 4 m | 8 m | within |\n|---|---|---|---|---|---|---|---|\n";
@@ -64,6 +65,7 @@ pub(super) fn tables(ours: [Runs; 2], others: [Runs; 2], readings: &[&str]) -> S
     q_table.push_str(&paper(|p| (p.1, p.2)));
     f_table.push_str(&paper(|p| (p.3, p.4)));
     let rows = std::iter::once(("ours", &ours)).chain(readings.iter().map(|r| (*r, &others)));
+    let mut fits: Vec<(&str, usize)> = Vec::new();
     for (name, runs) in rows {
         let mut q_row = Vec::new();
         let mut f_row = Vec::new();
@@ -77,6 +79,7 @@ pub(super) fn tables(ours: [Runs; 2], others: [Runs; 2], readings: &[&str]) -> S
             q_row.push(format!("{q:.1} ± {qs:.1}"));
             f_row.push(format!("{f:.1} ± {fs:.1}"));
         }
+        fits.push((name, q_fits + f_fits));
         let n = cols.len();
         q_table.push_str(&format!(
             "| `{name}` | {} | {q_fits} of {n} |\n",
@@ -87,5 +90,51 @@ pub(super) fn tables(ours: [Runs; 2], others: [Runs; 2], readings: &[&str]) -> S
             f_row.join(" | ")
         ));
     }
-    format!("Q = abs(V_p):\n\n{q_table}\nFollowing behaviours:\n\n{f_table}\n")
+    format!(
+        "Q = abs(V_p):\n\n{q_table}\nFollowing behaviours:\n\n{f_table}\n{}\n",
+        verdict(&fits, 2 * cols.len())
+    )
+}
+
+/// Which readings bring the most of the `entries` (Q and following, per column) within the
+/// paper's spread, from each reading's count; says so when one brings them all.
+fn verdict(fits: &[(&str, usize)], entries: usize) -> String {
+    let most = fits.iter().map(|f| f.1).max().unwrap_or(0);
+    let best: Vec<String> = fits
+        .iter()
+        .filter(|f| f.1 == most)
+        .map(|f| format!("`{}`", f.0))
+        .collect();
+    let best = best.join(", ");
+    if most == entries {
+        format!("Every entry of Tables I-II is within the paper's spread under {best}.\n")
+    } else {
+        format!(
+            "No reading brings all {entries} entries (Q and following behaviours, six columns \
+             each) within the paper's spread; the most within is {most}, under {best}.\n"
+        )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::verdict;
+
+    #[test]
+    fn the_verdict_names_the_readings_with_the_most_entries_within() {
+        let some = verdict(&[("ours", 8), ("ties", 8), ("eq6", 4)], 12);
+        assert!(
+            some.starts_with("No reading brings all 12 entries"),
+            "{some}"
+        );
+        assert!(
+            some.contains("the most within is 8, under `ours`, `ties`."),
+            "{some}"
+        );
+        let all = verdict(&[("ours", 11), ("ties", 12)], 12);
+        assert!(
+            all.starts_with("Every entry") && all.contains("under `ties`."),
+            "{all}"
+        );
+    }
 }
