@@ -314,3 +314,34 @@ fn the_readings_of_eq_6_and_of_the_ties_change_the_choice() {
         assert_ne!(choose(reading), ours, "{reading:?}");
     }
 }
+
+/// Under `tour_8_connected` the tour visits the same parent vertices in another order (a
+/// wiring check), and each step goes to a nearest remaining parent vertex by the open
+/// map's 8-neighbour distance, which there is the chessboard distance max(|dx|, |dy|).
+#[test]
+fn the_8_connected_tour_steps_to_a_nearest_vertex_by_chessboard_distance() {
+    let ours = open_map_plan(1, ViewRule::EveryGrab);
+    let eight = open_map_plan_reading(1, ViewRule::EveryGrab, Reading::Tour8Connected);
+    let (mut a, mut b) = (ours.parent_vertices.clone(), eight.parent_vertices.clone());
+    a.sort_unstable();
+    b.sort_unstable();
+    assert_eq!(a, b);
+    assert_ne!(ours.parent_vertices, eight.parent_vertices);
+    let map = open_map();
+    let chessboard = |u: usize, v: usize| {
+        let ((uc, ur), (vc, vr)) = (map.cell(u), map.cell(v));
+        uc.abs_diff(vc).max(ur.abs_diff(vr))
+    };
+    let order = &eight.parent_vertices;
+    for k in 1..order.len() {
+        let nearest = order[k..]
+            .iter()
+            .map(|&v| chessboard(order[k - 1], v))
+            .min();
+        assert_eq!(
+            Some(chessboard(order[k - 1], order[k])),
+            nearest,
+            "step {k}"
+        );
+    }
+}

@@ -14,7 +14,7 @@ fn main() {
     let t_vis = t.elapsed();
     let sel = select_parent_vertices(&map, &vis, &params);
     let t_sel = t.elapsed();
-    let _ = tour(&map, &sel.chosen, 1830);
+    let _ = tour(&map, &sel.chosen, 1830, Default::default());
     let t_tour = t.elapsed();
     let plan = plan_with(&map, &params, &vis, 1830, &[]).unwrap();
     let t_all = t.elapsed();

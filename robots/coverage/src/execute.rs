@@ -386,7 +386,7 @@ pub fn plan_with(
     let selection = select_parent_vertices(map, vis, params);
     // Parent vertices the parent cannot reach (another free-space component) are dropped:
     // what only they could see is reported as uncoverable.
-    let (order, _unreachable_parents) = tour(map, &selection.chosen, parent_start);
+    let (order, _unreachable_parents) = tour(map, &selection.chosen, parent_start, params.reading);
     let mut is_parent = vec![false; map.len()];
     for &p in &order {
         is_parent[p] = true;

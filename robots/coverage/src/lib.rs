@@ -122,11 +122,15 @@ pub enum Reading {
     TiesNearestAny,
     /// H (Eq. 8) is LOS_free(v_p^t) ∩ LOS_free(v_p^(t+1)), not LOS ∩ LOS.
     HFromLosFree,
+    /// The tour's distance transform (the paper's [16]) steps to the 8 cells around a vertex,
+    /// each step costing 1 and none cutting an occupied cell's corner, not to the 4 the
+    /// robots step to.
+    Tour8Connected,
 }
 
 impl Reading {
     /// Every reading, `Ours` first.
-    pub const ALL: [Reading; 8] = [
+    pub const ALL: [Reading; 9] = [
         Reading::Ours,
         Reading::ParentAPoint,
         Reading::LosStrict,
@@ -135,6 +139,7 @@ impl Reading {
         Reading::TiesNearestLast,
         Reading::TiesNearestAny,
         Reading::HFromLosFree,
+        Reading::Tour8Connected,
     ];
 
     /// The name a scenario's `[coverage] reading` gives it.
@@ -148,6 +153,7 @@ impl Reading {
             Reading::TiesNearestLast => "ties_nearest_last",
             Reading::TiesNearestAny => "ties_nearest_any",
             Reading::HFromLosFree => "h_from_los_free",
+            Reading::Tour8Connected => "tour_8_connected",
         }
     }
 

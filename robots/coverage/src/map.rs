@@ -133,6 +133,41 @@ impl Map {
         dist
     }
 
+    /// Geodesic distances from `from` over free vertices stepping to any of the 8 cells
+    /// around a vertex, each step costing 1; a diagonal step only where both cells it passes
+    /// between are free (it cuts no occupied corner). `usize::MAX` where unreachable. The
+    /// distance transform as [`crate::Reading::Tour8Connected`] reads it.
+    pub fn distances_8(&self, from: Vertex) -> Vec<usize> {
+        let mut dist = vec![usize::MAX; self.len()];
+        dist[from] = 0;
+        let mut queue = VecDeque::from([from]);
+        let free = |c: i64, r: i64| self.at(c, r).filter(|&u| self.free[u]);
+        while let Some(v) = queue.pop_front() {
+            let (c, r) = self.cell(v);
+            let (c, r) = (c as i64, r as i64);
+            for (dc, dr) in [
+                (1, 0),
+                (1, 1),
+                (0, 1),
+                (-1, 1),
+                (-1, 0),
+                (-1, -1),
+                (0, -1),
+                (1, -1),
+            ] {
+                let Some(n) = free(c + dc, r + dr) else {
+                    continue;
+                };
+                let corner_free = free(c + dc, r).is_some() && free(c, r + dr).is_some();
+                if dist[n] == usize::MAX && (dc == 0 || dr == 0 || corner_free) {
+                    dist[n] = dist[v] + 1;
+                    queue.push_back(n);
+                }
+            }
+        }
+        dist
+    }
+
     /// [`Self::distances`], stopped once every vertex of `until` is reached: exact for every
     /// vertex nearer `from` than the farthest of them (and for them), `usize::MAX` for the
     /// rest. Enough to walk from any of them to `from` by always stepping to a nearer
@@ -277,6 +312,17 @@ mod tests {
         let d = m.distances(m.at(0, 1).unwrap(), |_| true);
         assert_eq!(d[m.at(3, 1).unwrap()], 5);
         assert_eq!(d[m.at(1, 1).unwrap()], usize::MAX);
+        // Over 8 neighbours, open ground: (3, 2) is 3 diagonal steps from (0, 0). Around
+        // the obstacle the diagonals past its corners ((0, 1) -> (1, 0), (2, 0) -> (3, 1))
+        // would cut them, so the way round is 5 steps, as over 4.
+        let open = Map::from_text(&["....", "....", "...."], 0.5);
+        assert_eq!(
+            open.distances_8(open.at(0, 0).unwrap())[open.at(3, 2).unwrap()],
+            3
+        );
+        let d8 = m.distances_8(m.at(0, 1).unwrap());
+        assert_eq!(d8[m.at(3, 1).unwrap()], 5);
+        assert_eq!(d8[m.at(1, 1).unwrap()], usize::MAX);
         let p = m
             .path_to(m.at(0, 1).unwrap(), |v| v == m.at(3, 1).unwrap(), |_| true)
             .unwrap();

@@ -20,7 +20,9 @@
 //!   candidate covers anything new, and they are reported as uncoverable.
 //! * The tour is nearest neighbour by geodesic (4-connected step) distance, computed by a
 //!   breadth-first distance transform from each parent vertex, starting from the parent
-//!   vertex nearest to where the parent robot stands; ties to the lowest index.
+//!   vertex nearest to where the parent robot stands; ties to the lowest index. The robots
+//!   step up, down, left or right (Section V), so the distances do too;
+//!   [`Reading::Tour8Connected`] takes them over 8 neighbours instead.
 
 use crate::map::{Map, Vertex};
 use crate::visibility::Visibility;
@@ -140,15 +142,24 @@ pub fn select_parent_vertices(map: &Map, vis: &Visibility, params: &CoveragePara
 }
 
 /// Orders parent vertices into a nearest-neighbour tour from the one geodesically nearest
-/// to `start`. Parent vertices that cannot be reached from `start` are left out and returned
-/// second.
-pub fn tour(map: &Map, chosen: &[Vertex], start: Vertex) -> (Vec<Vertex>, Vec<Vertex>) {
+/// to `start` (over 4 neighbours, or 8 under [`Reading::Tour8Connected`]; the same vertices
+/// are reachable either way). Parent vertices that cannot be reached from `start` are left
+/// out and returned second.
+pub fn tour(
+    map: &Map,
+    chosen: &[Vertex],
+    start: Vertex,
+    reading: Reading,
+) -> (Vec<Vertex>, Vec<Vertex>) {
     let mut left: Vec<Vertex> = chosen.to_vec();
     left.sort_unstable();
     let mut order = Vec::with_capacity(left.len());
     let mut here = start;
     loop {
-        let dist = map.distances(here, |_| true);
+        let dist = match reading {
+            Reading::Tour8Connected => map.distances_8(here),
+            _ => map.distances(here, |_| true),
+        };
         let next = left
             .iter()
             .enumerate()
@@ -193,7 +204,7 @@ mod tests {
             "{} parent vertices",
             sel.chosen.len()
         );
-        let (order, unreachable) = tour(&map, &sel.chosen, 0);
+        let (order, unreachable) = tour(&map, &sel.chosen, 0, Reading::Ours);
         assert!(unreachable.is_empty());
         let mut sorted = order.clone();
         sorted.sort_unstable();
