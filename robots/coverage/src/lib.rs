@@ -124,7 +124,7 @@ pub enum Reading {
     HFromLosFree,
     /// The tour's distance transform (the paper's [16]) steps to the 8 cells around a vertex,
     /// each step costing 1 and none cutting an occupied cell's corner, not to the 4 the
-    /// robots step to.
+    /// robots step to (Section IV states 4; measured to rule the tour's metric out).
     Tour8Connected,
 }
 

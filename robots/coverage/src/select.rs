@@ -21,8 +21,9 @@
 //! * The tour is nearest neighbour by geodesic (4-connected step) distance, computed by a
 //!   breadth-first distance transform from each parent vertex, starting from the parent
 //!   vertex nearest to where the parent robot stands; ties to the lowest index. The robots
-//!   step up, down, left or right (Section V), so the distances do too;
-//!   [`Reading::Tour8Connected`] takes them over 8 neighbours instead.
+//!   step up, down, left or right and the roadmap graphs' vertices have at most 4 edges
+//!   (Section IV), so the distances do too; [`Reading::Tour8Connected`] takes them over 8
+//!   neighbours instead, to measure what the metric does.
 
 use crate::map::{Map, Vertex};
 use crate::visibility::Visibility;

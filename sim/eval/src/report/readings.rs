@@ -100,18 +100,24 @@ pub(super) fn tables(ours: [Runs; 2], others: [Runs; 2], readings: &[&str]) -> S
 /// paper's spread, from each reading's count; says so when one brings them all.
 fn verdict(fits: &[(&str, usize)], entries: usize) -> String {
     let most = fits.iter().map(|f| f.1).max().unwrap_or(0);
-    let best: Vec<String> = fits
+    let mut best: Vec<String> = fits
         .iter()
         .filter(|f| f.1 == most)
         .map(|f| format!("`{}`", f.0))
         .collect();
-    let best = best.join(", ");
+    let last = best.pop().unwrap_or_default();
+    let best = if best.is_empty() {
+        last
+    } else {
+        format!("{} and {last}", best.join(", "))
+    };
     if most == entries {
         format!("Every entry of Tables I-II is within the paper's spread under {best}.\n")
     } else {
         format!(
-            "No reading brings all {entries} entries (Q and following behaviours, six columns \
-             each) within the paper's spread; the most within is {most}, under {best}.\n"
+            "No reading brings all {entries} entries (Q and following behaviours, {} columns \
+             each) within the paper's spread; the most within is {most}, under {best}.\n",
+            entries / 2
         )
     }
 }
@@ -122,13 +128,14 @@ mod tests {
 
     #[test]
     fn the_verdict_names_the_readings_with_the_most_entries_within() {
-        let some = verdict(&[("ours", 8), ("ties", 8), ("eq6", 4)], 12);
+        let some = verdict(&[("ours", 8), ("ties", 8), ("los", 8), ("eq6", 4)], 12);
         assert!(
             some.starts_with("No reading brings all 12 entries"),
             "{some}"
         );
         assert!(
-            some.contains("the most within is 8, under `ours`, `ties`."),
+            some.contains("6 columns each")
+                && some.contains("the most within is 8, under `ours`, `ties` and `los`."),
             "{some}"
         );
         let all = verdict(&[("ours", 11), ("ties", 12)], 12);
