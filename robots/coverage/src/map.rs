@@ -313,9 +313,9 @@ mod tests {
         assert_eq!(d[m.at(3, 1).unwrap()], 5);
         assert_eq!(d[m.at(1, 1).unwrap()], usize::MAX);
         // Over 8 neighbours, open ground: (3, 2) is 3 steps from (0, 0) (2 diagonal, 1
-        // east; 5 over 4 neighbours). Around
-        // the obstacle the diagonals past its corners ((0, 1) -> (1, 0), (2, 0) -> (3, 1))
-        // would cut them, so the way round is 5 steps, as over 4.
+        // east; 5 over 4 neighbours). Around the obstacle the diagonals past its corners
+        // ((0, 1) -> (1, 0), (2, 0) -> (3, 1)) would cut them, so the way round is 5 steps,
+        // as over 4.
         let open = Map::from_text(&["....", "....", "...."], 0.5);
         assert_eq!(
             open.distances_8(open.at(0, 0).unwrap())[open.at(3, 2).unwrap()],
