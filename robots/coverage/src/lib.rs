@@ -126,11 +126,15 @@ pub enum Reading {
     /// each step costing 1 and none cutting an occupied cell's corner, not to the 4 the
     /// robots step to (Section IV states 4; measured to rule the tour's metric out).
     Tour8Connected,
+    /// n(v) counts the free vertices around v still uncovered, not all free ones, so that a
+    /// vertex's specific weight grows as its neighbours are covered (updated with the
+    /// scores, step 4 of the selection).
+    NUncovered,
 }
 
 impl Reading {
     /// Every reading, `Ours` first.
-    pub const ALL: [Reading; 9] = [
+    pub const ALL: [Reading; 10] = [
         Reading::Ours,
         Reading::ParentAPoint,
         Reading::LosStrict,
@@ -140,6 +144,7 @@ impl Reading {
         Reading::TiesNearestAny,
         Reading::HFromLosFree,
         Reading::Tour8Connected,
+        Reading::NUncovered,
     ];
 
     /// The name a scenario's `[coverage] reading` gives it.
@@ -154,6 +159,7 @@ impl Reading {
             Reading::TiesNearestAny => "ties_nearest_any",
             Reading::HFromLosFree => "h_from_los_free",
             Reading::Tour8Connected => "tour_8_connected",
+            Reading::NUncovered => "n_uncovered",
         }
     }
 

@@ -90,18 +90,17 @@ impl Map {
 
     /// Number of free vertices among the 8 cells around `v`.
     pub fn free_8_neighbours(&self, v: Vertex) -> usize {
+        self.free_8_around(v).count()
+    }
+
+    /// The free vertices among the 8 cells around `v`.
+    pub fn free_8_around(&self, v: Vertex) -> impl Iterator<Item = Vertex> + '_ {
         let (c, r) = self.cell(v);
-        let mut n = 0;
-        for dr in -1..=1 {
-            for dc in -1..=1 {
-                if (dc, dr) != (0, 0) {
-                    if let Some(u) = self.at(c as i64 + dc, r as i64 + dr) {
-                        n += usize::from(self.free[u]);
-                    }
-                }
-            }
-        }
-        n
+        (-1..=1i64)
+            .flat_map(|dr| (-1..=1i64).map(move |dc| (dc, dr)))
+            .filter(|&d| d != (0, 0))
+            .filter_map(move |(dc, dr)| self.at(c as i64 + dc, r as i64 + dr))
+            .filter(|&u| self.free[u])
     }
 
     /// Whether two vertices are one up/down/left/right step apart.

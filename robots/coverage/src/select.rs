@@ -13,6 +13,9 @@
 //!   that would cover something new are considered; when none lies within f (a gap closed
 //!   off by obstacles), the whole map is searched.
 //! * Ties in the score go to the lowest vertex index (south-west first, row by row).
+//! * n(v) counts every free vertex around v, so w_s(v) is fixed; only the sum of Eq. 5
+//!   changes as vertices are covered. [`Reading::NUncovered`] counts the uncovered ones only,
+//!   so a vertex's own weight grows as the vertices around it are covered.
 //! * [`Reading`] names the other readings of Eq. 6 and of the ties, measured against these
 //!   in `results/coverage-tables.md`.
 //! * Vertices that no vertex's LOS_free contains cannot be imaged by any parent placement.
@@ -42,9 +45,13 @@ pub struct Selection {
 /// Runs the greedy choice of parent vertices.
 pub fn select_parent_vertices(map: &Map, vis: &Visibility, params: &CoverageParams) -> Selection {
     let vertices = map.vertices();
-    let specific: Vec<u64> = (0..map.len())
-        .map(|v| (9 - map.free_8_neighbours(v) as u64).pow(2))
+    let reading = params.reading;
+    // n(v), and w_s(v) = (9 - n(v))^2 (Eq. 5). Under `NUncovered`, n(v) falls as the
+    // vertices around v are covered, and w_s(v) grows with it.
+    let mut n: Vec<u64> = (0..map.len())
+        .map(|v| map.free_8_neighbours(v) as u64)
         .collect();
+    let mut specific: Vec<u64> = n.iter().map(|&k| (9 - k).pow(2)).collect();
     // reverse[l]: the vertices v whose LOS_free contains l.
     let mut reverse: Vec<Vec<Vertex>> = vec![Vec::new(); map.len()];
     for &v in &vertices {
@@ -63,19 +70,34 @@ pub fn select_parent_vertices(map: &Map, vis: &Visibility, params: &CoveragePara
     let mut near = vec![0usize; map.len()];
     // Ties: the distance to the nearest chosen vertex (the last one, or any).
     let mut tie_m = vec![0.0f64; map.len()];
-    let reading = params.reading;
     let f = params.f_factor * params.r_los_m;
     let mut remaining = vertices.len();
     let mut chosen = Vec::new();
-    let retire = |l: Vertex, done: &mut Vec<bool>, score: &mut Vec<u64>, remaining: &mut usize| {
-        if !done[l] {
+    let mut retire =
+        |l: Vertex, done: &mut Vec<bool>, score: &mut Vec<u64>, remaining: &mut usize| {
+            if done[l] {
+                return;
+            }
             done[l] = true;
             *remaining -= 1;
             for &v in &reverse[l] {
                 score[v] -= specific[l];
             }
-        }
-    };
+            if reading == Reading::NUncovered {
+                // Each vertex around l has one uncovered neighbour fewer; where it is still
+                // uncovered itself, the scores that count it grow by its new weight's increase.
+                for u in map.free_8_around(l) {
+                    n[u] -= 1;
+                    let grown = (9 - n[u]).pow(2) - specific[u];
+                    specific[u] += grown;
+                    if !done[u] {
+                        for &v in &reverse[u] {
+                            score[v] += grown;
+                        }
+                    }
+                }
+            }
+        };
     while remaining > 0 {
         let candidate = |v: Vertex| match reading {
             Reading::Eq6LastChoice => chosen
@@ -212,6 +234,75 @@ mod tests {
         let mut expected = sel.chosen.clone();
         expected.sort_unstable();
         assert_eq!(sorted, expected);
+    }
+
+    /// Each choice has the highest score among Eq. 6's candidates (the lowest index among
+    /// equals), the scores recomputed from Eq. 5 at every step from what is still uncovered,
+    /// not kept up to date as the selection does: with n(v) all free vertices around v, and
+    /// under `n_uncovered` the uncovered ones only.
+    #[test]
+    fn each_choice_has_the_best_score_recomputed_from_eq_5() {
+        let map = Map::from_text(
+            &[
+                "................",
+                "...##......#....",
+                "...##......#....",
+                "...........#....",
+                "......###.......",
+                "................",
+                ".#..........##..",
+                ".#..............",
+                "........#.......",
+                "................",
+            ],
+            0.5,
+        );
+        for reading in [Reading::Ours, Reading::NUncovered] {
+            let params = CoverageParams {
+                reading,
+                ..CoverageParams::default()
+            };
+            let vis = Visibility::compute(&map, &params);
+            let sel = select_parent_vertices(&map, &vis, &params);
+            let f = params.f_factor * params.r_los_m;
+            let mut done = vec![false; map.len()];
+            let weight = |l: Vertex, done: &[bool]| {
+                let n = map
+                    .free_8_around(l)
+                    .filter(|&u| reading == Reading::Ours || !done[u])
+                    .count() as u64;
+                (9 - n).pow(2)
+            };
+            for (k, &p) in sel.chosen.iter().enumerate() {
+                let score = |v: Vertex| -> u64 {
+                    let free = vis.los_free[v].iter().filter(|&&l| !done[l]);
+                    free.map(|&l| weight(l, &done)).sum()
+                };
+                let open = |v: &Vertex| !sel.chosen[..k].contains(v) && score(*v) > 0;
+                let near = |v: &Vertex| {
+                    k == 0
+                        || sel.chosen[..k]
+                            .iter()
+                            .any(|&c| map.distance_m(*v, c) <= f + 1e-9)
+                };
+                let mut candidates: Vec<Vertex> = map
+                    .vertices()
+                    .into_iter()
+                    .filter(|v| open(v) && near(v))
+                    .collect();
+                if candidates.is_empty() {
+                    candidates = map.vertices().into_iter().filter(open).collect();
+                }
+                let best = candidates.iter().map(|&v| score(v)).max().unwrap();
+                let first = candidates.iter().find(|&&v| score(v) == best).unwrap();
+                assert_eq!((p, score(p)), (*first, best), "{reading:?}, choice {k}");
+                done[p] = true;
+                for &l in &vis.los_free[p] {
+                    done[l] = true;
+                }
+            }
+            assert!(map.vertices().iter().all(|&v| done[v]), "{reading:?}");
+        }
     }
 
     #[test]

@@ -59,7 +59,7 @@ impl Default for CoverageSpec {
 
 /// The names `[coverage] reading` takes, "ours" first (`hetsim_coverage::Reading`'s; a test
 /// in `tests/tests/coverage.rs` keeps the two lists the same).
-pub const READINGS: [&str; 9] = [
+pub const READINGS: [&str; 10] = [
     "ours",
     "parent_a_point",
     "los_strict",
@@ -69,6 +69,7 @@ pub const READINGS: [&str; 9] = [
     "ties_nearest_any",
     "h_from_los_free",
     "tour_8_connected",
+    "n_uncovered",
 ];
 
 impl CoverageSpec {
