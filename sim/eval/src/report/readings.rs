@@ -96,6 +96,51 @@ pub(super) fn tables(ours: [Runs; 2], others: [Runs; 2], readings: &[&str]) -> S
     )
 }
 
+/// The six columns' labels, in [`columns`]' order.
+const COLUMN_LABELS: [&str; 6] = ["0 %", "20 %", "40 %", "1 m", "4 m", "8 m"];
+
+/// A Q table with the paper's row and one row per `(label, runs)`, and how many of the six
+/// columns lie within the paper's spread; then a sentence, computed from the table, naming
+/// the columns each row brings within it.
+pub(super) fn q_table(rows: &[(&str, [Runs; 2])]) -> String {
+    let cols = columns();
+    let mut md =
+        String::from("| map | 0 % | 20 % | 40 % | 1 m | 4 m | 8 m | within |\n|---|---|---|---|---|---|---|---|\n");
+    let paper: Vec<String> = cols
+        .iter()
+        .map(|(_, p)| format!("{:.1} ± {:.1}", p.1, p.2))
+        .collect();
+    md.push_str(&format!("| paper | {} | |\n", paper.join(" | ")));
+    let mut said = Vec::new();
+    for (label, runs) in rows {
+        let mut cells = Vec::new();
+        let mut inside = Vec::new();
+        for (k, &(table, (x, pq, pqs, ..))) in cols.iter().enumerate() {
+            let (q, qs) = mean_std(&samples(&runs[table].cells(x, ""), "parent_vertices"));
+            if within(q, pq, pqs) {
+                inside.push(COLUMN_LABELS[k]);
+            }
+            cells.push(format!("{q:.1} ± {qs:.1}"));
+        }
+        md.push_str(&format!(
+            "| {label} | {} | {} of {} |\n",
+            cells.join(" | "),
+            inside.len(),
+            cols.len()
+        ));
+        let list = if inside.is_empty() {
+            "none".to_string()
+        } else {
+            inside.join(", ")
+        };
+        said.push(format!("{label}: {list}"));
+    }
+    format!(
+        "{md}\nColumns within the paper's spread, {}.\n\n",
+        said.join("; ")
+    )
+}
+
 /// Which readings bring the most of the `entries` (Q and following, per column) within the
 /// paper's spread, from each reading's count; says so when one brings them all.
 fn verdict(fits: &[(&str, usize)], entries: usize) -> String {
@@ -124,7 +169,69 @@ fn verdict(fits: &[(&str, usize)], entries: usize) -> String {
 
 #[cfg(test)]
 mod tests {
-    use super::verdict;
+    use super::{q_table, verdict, Runs};
+    use crate::sweep::{Stat, SummaryCell, SweepSummary};
+
+    /// A summary of one-axis cells, each with its `parent_vertices` samples.
+    fn summary(cells: &[(f64, &[f64])]) -> SweepSummary {
+        let cells = cells
+            .iter()
+            .map(|&(x, q)| SummaryCell {
+                values: vec![x.to_string()],
+                metrics: vec!["parent_vertices".into()],
+                stats: vec![Stat {
+                    mean: f64::NAN,
+                    std: f64::NAN,
+                    samples: q.to_vec(),
+                    missing: 0,
+                }],
+                runs: q.len(),
+            })
+            .collect::<Vec<_>>();
+        SweepSummary {
+            finished: 0,
+            total: 0,
+            cells,
+        }
+    }
+
+    #[test]
+    fn the_q_table_counts_the_columns_within_the_papers_spread() {
+        let runs = |s| Runs {
+            summary: s,
+            column_axis: 0,
+            reading_axis: None,
+        };
+        // The paper's Table I (0 % without a spread: within 3 %, so 172.0 of 167.0 is in and
+        // 172.1 out) and Table II's 1 / 4 / 8 m, whose 2 m column must not be read.
+        let (t1_in, t2_in) = (
+            summary(&[(0.0, &[172.0]), (0.2, &[176.5, 184.5]), (0.4, &[174.9])]),
+            summary(&[
+                (1.0, &[538.5]),
+                (2.0, &[1.0]),
+                (4.0, &[75.2]),
+                (8.0, &[42.0]),
+            ]),
+        );
+        let (t1_out, t2_out) = (
+            summary(&[(0.0, &[172.1]), (0.2, &[185.0]), (0.4, &[169.4])]),
+            summary(&[(1.0, &[545.0]), (4.0, &[75.4]), (8.0, &[45.0])]),
+        );
+        let md = q_table(&[
+            ("in", [runs(&t1_in), runs(&t2_in)]),
+            ("out", [runs(&t1_out), runs(&t2_out)]),
+        ]);
+        assert!(md.contains("| paper | 167.0 ± 0.0 | 180.5 ± 4.1 |"), "{md}");
+        assert!(md.contains("| in | 172.0 ± 0.0 | 180.5 ± 5.7 |"), "{md}");
+        assert!(
+            md.contains("| 6 of 6 |") && md.contains("| 0 of 6 |"),
+            "{md}"
+        );
+        assert!(
+            md.contains("in: 0 %, 20 %, 40 %, 1 m, 4 m, 8 m; out: none."),
+            "{md}"
+        );
+    }
 
     #[test]
     fn the_verdict_names_the_readings_with_the_most_entries_within() {
