@@ -430,7 +430,7 @@ pub fn coverage_report(
             },
         })
     };
-    md.push_str("## Q and the map's border\n\n`scenarios/sweeps/map-border-table1.toml` and `map-border-table2.toml`: the paper's maps are 30 x 30 m, and it does not say whether their walls lie inside them. Ours stand outside (60 x 60 vertices at 0 %); there the walls take the outermost ring of cells (58 x 58 vertices at 0 %, the obstacles covering the given share of the floor inside them). Q; outside: Tables I-II's runs (all numbers of children); inside: one child per map, so its ± is the spread over the 10 maps:\n\n");
+    md.push_str("## Q and the map's border\n\n`scenarios/sweeps/map-border-table1.toml` and `map-border-table2.toml`: the paper's maps are 30 x 30 m, and it does not say whether their walls lie inside them. Ours stand outside (60 x 60 vertices at 0 %); in these sweeps the walls take the outermost ring of cells (58 x 58 vertices at 0 %, the obstacles covering the given share of the floor inside them). Q; outside: Tables I-II's runs (all numbers of children); inside: one child per map, so its ± is the spread over the 10 maps:\n\n");
     md.push_str(&readings::q_table(&[
         (
             "walls outside the 30 m (ours)",
