@@ -287,8 +287,8 @@ mod tests {
                 reading,
                 ..CoverageParams::default()
             };
-            let vis = Visibility::compute(&map, &params);
-            let sel = select_parent_vertices(&map, &vis, &params);
+            let vis = Visibility::compute(map, &params);
+            let sel = select_parent_vertices(map, &vis, &params);
             let f = params.f_factor * params.r_los_m;
             let mut done = vec![false; map.len()];
             let weight = |l: Vertex, done: &[bool]| {
