@@ -170,22 +170,14 @@ fn verdict(fits: &[(&str, usize)], entries: usize) -> String {
 #[cfg(test)]
 mod tests {
     use super::{q_table, verdict, Runs};
-    use crate::sweep::{Stat, SummaryCell, SweepSummary};
+    use crate::sweep::SweepSummary;
 
     /// A summary of one-axis cells, each with its `parent_vertices` samples.
     fn summary(cells: &[(f64, &[f64])]) -> SweepSummary {
         let cells = cells
             .iter()
-            .map(|&(x, q)| SummaryCell {
-                values: vec![x.to_string()],
-                metrics: vec!["parent_vertices".into()],
-                stats: vec![Stat {
-                    mean: f64::NAN,
-                    std: f64::NAN,
-                    samples: q.to_vec(),
-                    missing: 0,
-                }],
-                runs: q.len(),
+            .map(|&(x, q)| {
+                super::super::testing::test_cell(&x.to_string(), "parent_vertices", q, 0)
             })
             .collect::<Vec<_>>();
         SweepSummary {
