@@ -8,7 +8,8 @@ use std::collections::BTreeMap;
 /// least total timesteps (ties to the smaller team). `cells` hold one number of children
 /// each, their samples the same maps in the same order (the sweep's seeds, in run order);
 /// empty when a cell misses a value or holds another number of maps, so that no map is
-/// paired with another.
+/// paired with another. (A run without a row is in neither count, but the report's sweeps
+/// are complete: `run_sweep` fails on a run that fails.)
 pub(super) fn wins_per_map(cells: &[&SummaryCell], children_axis: usize) -> BTreeMap<usize, usize> {
     let mut teams: Vec<(usize, &[f64])> = cells
         .iter()
@@ -64,8 +65,11 @@ mod tests {
             best_team_per_map(&[&three, &one, &two], 0),
             "1 on 1, 2 on 2, 3 on 1"
         );
-        // A map missing from one cell: the maps cannot be paired, so nothing is said.
-        let short = cell(2, &[20.0, 35.0, 31.0], 1);
+        // A run without a value in one cell (its 4 values then come from 5 runs), or a cell
+        // of fewer maps: the maps cannot be paired, so nothing is said.
+        let missing = cell(2, &[20.0, 35.0, 31.0, 10.0], 1);
+        assert_eq!(best_team_per_map(&[&one, &missing, &three], 0), "");
+        let short = cell(2, &[20.0, 35.0, 31.0], 0);
         assert_eq!(best_team_per_map(&[&one, &short, &three], 0), "");
     }
 }
