@@ -257,26 +257,10 @@ mod tests {
             ],
             0.5,
         );
-        // A larger cluttered room: each cell occupied with probability 3/16 (xorshift64).
-        let mut x = 0x9e37_79b9_7f4a_7c15_u64;
-        let rows: Vec<String> = (0..20)
-            .map(|_| {
-                (0..28)
-                    .map(|_| {
-                        x ^= x << 13;
-                        x ^= x >> 7;
-                        x ^= x << 17;
-                        if x % 16 < 3 {
-                            '#'
-                        } else {
-                            '.'
-                        }
-                    })
-                    .collect()
-            })
-            .collect();
-        let refs: Vec<&str> = rows.iter().map(String::as_str).collect();
-        let cluttered = Map::from_text(&refs, 0.5);
+        // A larger cluttered room: each cell occupied with probability 0.19.
+        use rand::SeedableRng;
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(18);
+        let cluttered = crate::map::random_map(&mut rng, 24, 0.19);
         for (map, reading) in [
             (&small, Reading::Ours),
             (&small, Reading::NUncovered),

@@ -43,44 +43,71 @@ fn columns() -> Vec<(usize, PaperColumn)> {
         .collect()
 }
 
+/// A table's header, its first column named `first`.
+fn header(first: &str) -> String {
+    format!(
+        "| {first} | {} | within |\n|---|---|---|---|---|---|---|---|\n",
+        COLUMN_LABELS.join(" | ")
+    )
+}
+
+/// The paper's row, `pick` choosing a column's (mean, std): Q's or the following
+/// behaviours'.
+fn paper_row(pick: fn(&PaperColumn) -> (f64, f64)) -> String {
+    let cells: Vec<String> = columns()
+        .iter()
+        .map(|(_, p)| {
+            let (m, s) = pick(p);
+            format!("{m:.1} ± {s:.1}")
+        })
+        .collect();
+    format!("| paper | {} | |\n", cells.join(" | "))
+}
+
+/// One row's cells ("mean ± std" of `metric` over the runs of `reading`) and, per column,
+/// whether the mean lies within the paper's spread (`pick` as in [`paper_row`]).
+fn row(
+    runs: &[Runs; 2],
+    reading: &str,
+    metric: &str,
+    pick: fn(&PaperColumn) -> (f64, f64),
+) -> (Vec<String>, Vec<bool>) {
+    columns()
+        .iter()
+        .map(|&(table, p)| {
+            let (m, s) = mean_std(&samples(&runs[table].cells(p.0, reading), metric));
+            let (pm, ps) = pick(&p);
+            (format!("{m:.1} ± {s:.1}"), within(m, pm, ps))
+        })
+        .unzip()
+}
+
+/// Q's mean and std in a paper column.
+fn q_of(p: &PaperColumn) -> (f64, f64) {
+    (p.1, p.2)
+}
+
+/// The following behaviours' mean and std in a paper column.
+fn following_of(p: &PaperColumn) -> (f64, f64) {
+    (p.3, p.4)
+}
+
 /// Two tables, Q and following behaviours, with a row for the paper, the shipped reading
 /// (`ours`: Tables I-II's runs) and each reading of `others` (the readings sweeps' runs), and
 /// how many of the six columns lie within the paper's spread; then a sentence, computed from
 /// them, on which readings bring the most of the twelve entries within it.
 pub(super) fn tables(ours: [Runs; 2], others: [Runs; 2], readings: &[&str]) -> String {
-    let cols = columns();
-    let header = "| reading | 0 % | 20 % | 40 % | 1 m | 4 m | 8 m | within |\n|---|---|---|---|---|---|---|---|\n";
-    let mut q_table = String::from(header);
-    let mut f_table = String::from(header);
-    let paper = |pick: fn(&PaperColumn) -> (f64, f64)| {
-        let cells: Vec<String> = cols
-            .iter()
-            .map(|(_, p)| {
-                let (m, s) = pick(p);
-                format!("{m:.1} ± {s:.1}")
-            })
-            .collect();
-        format!("| paper | {} | |\n", cells.join(" | "))
-    };
-    q_table.push_str(&paper(|p| (p.1, p.2)));
-    f_table.push_str(&paper(|p| (p.3, p.4)));
+    let mut q_table = header("reading") + &paper_row(q_of);
+    let mut f_table = header("reading") + &paper_row(following_of);
     let rows = std::iter::once(("ours", &ours)).chain(readings.iter().map(|r| (*r, &others)));
     let mut fits: Vec<(&str, usize)> = Vec::new();
+    let n = COLUMN_LABELS.len();
     for (name, runs) in rows {
-        let mut q_row = Vec::new();
-        let mut f_row = Vec::new();
-        let (mut q_fits, mut f_fits) = (0, 0);
-        for &(table, (x, pq, pqs, pf, pfs)) in &cols {
-            let cells = runs[table].cells(x, name);
-            let (q, qs) = mean_std(&samples(&cells, "parent_vertices"));
-            let (f, fs) = mean_std(&samples(&cells, "following"));
-            q_fits += usize::from(within(q, pq, pqs));
-            f_fits += usize::from(within(f, pf, pfs));
-            q_row.push(format!("{q:.1} ± {qs:.1}"));
-            f_row.push(format!("{f:.1} ± {fs:.1}"));
-        }
+        let (q_row, q_in) = row(runs, name, "parent_vertices", q_of);
+        let (f_row, f_in) = row(runs, name, "following", following_of);
+        let q_fits = q_in.iter().filter(|&&b| b).count();
+        let f_fits = f_in.iter().filter(|&&b| b).count();
         fits.push((name, q_fits + f_fits));
-        let n = cols.len();
         q_table.push_str(&format!(
             "| `{name}` | {} | {q_fits} of {n} |\n",
             q_row.join(" | ")
@@ -92,7 +119,7 @@ pub(super) fn tables(ours: [Runs; 2], others: [Runs; 2], readings: &[&str]) -> S
     }
     format!(
         "Q = abs(V_p):\n\n{q_table}\nFollowing behaviours:\n\n{f_table}\n{}\n",
-        verdict(&fits, 2 * cols.len())
+        verdict(&fits, 2 * n)
     )
 }
 
@@ -103,30 +130,21 @@ const COLUMN_LABELS: [&str; 6] = ["0 %", "20 %", "40 %", "1 m", "4 m", "8 m"];
 /// columns lie within the paper's spread; then a sentence, computed from the table, naming
 /// the columns each row brings within it.
 pub(super) fn q_table(rows: &[(&str, [Runs; 2])]) -> String {
-    let cols = columns();
-    let mut md =
-        String::from("| map | 0 % | 20 % | 40 % | 1 m | 4 m | 8 m | within |\n|---|---|---|---|---|---|---|---|\n");
-    let paper: Vec<String> = cols
-        .iter()
-        .map(|(_, p)| format!("{:.1} ± {:.1}", p.1, p.2))
-        .collect();
-    md.push_str(&format!("| paper | {} | |\n", paper.join(" | ")));
+    let mut md = header("map") + &paper_row(q_of);
     let mut said = Vec::new();
     for (label, runs) in rows {
-        let mut cells = Vec::new();
-        let mut inside = Vec::new();
-        for (k, &(table, (x, pq, pqs, ..))) in cols.iter().enumerate() {
-            let (q, qs) = mean_std(&samples(&runs[table].cells(x, ""), "parent_vertices"));
-            if within(q, pq, pqs) {
-                inside.push(COLUMN_LABELS[k]);
-            }
-            cells.push(format!("{q:.1} ± {qs:.1}"));
-        }
+        let (cells, fits) = row(runs, "", "parent_vertices", q_of);
+        let inside: Vec<&str> = COLUMN_LABELS
+            .iter()
+            .zip(&fits)
+            .filter(|(_, &b)| b)
+            .map(|(l, _)| *l)
+            .collect();
         md.push_str(&format!(
             "| {label} | {} | {} of {} |\n",
             cells.join(" | "),
             inside.len(),
-            cols.len()
+            COLUMN_LABELS.len()
         ));
         let list = if inside.is_empty() {
             "none".to_string()
