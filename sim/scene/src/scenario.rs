@@ -151,6 +151,10 @@ pub struct IndoorSpec {
     pub obstacle_cells: [u32; 2],
     /// Random obstacles' heights, metres: `[min, max]`.
     pub obstacle_height_m: [f64; 2],
+    /// Whether a random obstacle may be placed over cells other obstacles occupy (only its
+    /// new cells count towards `obstruction_ratio`), so that obstacles merge into larger
+    /// ones; `false` refuses every placement that covers an occupied cell.
+    pub obstacles_overlap: bool,
     /// Height of the border walls, metres.
     pub wall_height_m: f64,
     /// Fixed obstacles (furniture) placed before the random ones.
@@ -166,6 +170,7 @@ impl Default for IndoorSpec {
             obstruction_ratio: 0.0,
             obstacle_cells: [1, 6],
             obstacle_height_m: [1.8, 2.4],
+            obstacles_overlap: false,
             wall_height_m: 2.5,
             obstacles: Vec::new(),
         }
