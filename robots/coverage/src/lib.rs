@@ -108,6 +108,10 @@ pub enum Reading {
     ParentAPoint,
     /// LOS (Eq. 1) holds the vertices strictly closer than r_los, not those at r_los.
     LosStrict,
+    /// LOS (Eq. 1) is a sight line that crosses the inside of no occupied cell, as a
+    /// camera's ([`crate::visibility::line_of_sight_open`]): it may graze an obstacle cell's
+    /// corner or pass between two that meet at a corner, which the shipped LOS may not.
+    LosOpen,
     /// Eq. 6's candidates are the vertices within f of the last parent vertex chosen, not of
     /// any.
     Eq6LastChoice,
@@ -134,10 +138,11 @@ pub enum Reading {
 
 impl Reading {
     /// Every reading, `Ours` first.
-    pub const ALL: [Reading; 10] = [
+    pub const ALL: [Reading; 11] = [
         Reading::Ours,
         Reading::ParentAPoint,
         Reading::LosStrict,
+        Reading::LosOpen,
         Reading::Eq6LastChoice,
         Reading::Eq6EveryChoice,
         Reading::TiesNearestLast,
@@ -153,6 +158,7 @@ impl Reading {
             Reading::Ours => "ours",
             Reading::ParentAPoint => "parent_a_point",
             Reading::LosStrict => "los_strict",
+            Reading::LosOpen => "los_open",
             Reading::Eq6LastChoice => "eq6_last_choice",
             Reading::Eq6EveryChoice => "eq6_every_choice",
             Reading::TiesNearestLast => "ties_nearest_last",

@@ -226,7 +226,11 @@ impl Visibility {
                 .filter(|(dc, dr)| *dr > 0 || (*dr == 0 && *dc > 0))
             {
                 if let Some(w) = map.at(c as i64 + dc, r as i64 + dr) {
-                    if map.is_free(w) && line_of_sight(map, v, w) {
+                    let seen = match params.reading {
+                        Reading::LosOpen => line_of_sight_open(map, v, w),
+                        _ => line_of_sight(map, v, w),
+                    };
+                    if map.is_free(w) && seen {
                         los[v].push(w);
                         los[w].push(v);
                     }
@@ -491,6 +495,34 @@ mod tests {
             m.at(2, 0).unwrap(),
             m.at(2, 4).unwrap()
         ));
+    }
+
+    #[test]
+    fn los_open_sees_past_the_corner_that_the_shipped_los_does_not() {
+        // The cabinets' map above: (3, 3) is 1.58 m from (0, 4), seen past the corner.
+        let m = Map::from_text(&["....", "##..", "##..", "##..", "##.."], 0.5);
+        let (a, corner, through) = (
+            m.at(0, 4).unwrap(),
+            m.at(3, 3).unwrap(),
+            m.at(3, 2).unwrap(),
+        );
+        let sets = |reading| {
+            Visibility::compute(
+                &m,
+                &CoverageParams {
+                    reading,
+                    ..params()
+                },
+            )
+        };
+        let (ours, open) = (sets(crate::Reading::Ours), sets(crate::Reading::LosOpen));
+        assert!(!ours.los[a].contains(&corner) && !ours.los[corner].contains(&a));
+        assert!(open.los[a].contains(&corner) && open.los[corner].contains(&a));
+        assert!(!open.los[a].contains(&through));
+        // Open sight holds every pair the shipped LOS holds.
+        for v in m.vertices() {
+            assert!(ours.los[v].iter().all(|w| open.los[v].contains(w)));
+        }
     }
 
     #[test]

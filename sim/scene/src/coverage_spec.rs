@@ -59,10 +59,11 @@ impl Default for CoverageSpec {
 
 /// The names `[coverage] reading` takes, "ours" first (`hetsim_coverage::Reading`'s; a test
 /// in `tests/tests/coverage.rs` keeps the two lists the same).
-pub const READINGS: [&str; 10] = [
+pub const READINGS: [&str; 11] = [
     "ours",
     "parent_a_point",
     "los_strict",
+    "los_open",
     "eq6_last_choice",
     "eq6_every_choice",
     "ties_nearest_last",
