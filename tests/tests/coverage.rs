@@ -9,11 +9,13 @@ use hetsim_scene::world::{generate_indoor, KeepClear};
 use hetsim_scene::IndoorSpec;
 use hetsim_tests::repo;
 
-fn random_map(size_m: f64, ratio: f64, seed: u64) -> Map {
+/// A random map from the indoor generator; `overlap`: obstacles may lie over each other.
+fn random_map(size_m: f64, ratio: f64, overlap: bool, seed: u64) -> Map {
     let spec = IndoorSpec {
         width_m: size_m,
         height_m: size_m,
         obstruction_ratio: ratio,
+        obstacles_overlap: overlap,
         ..IndoorSpec::default()
     };
     let world = generate_indoor(&spec, &Streams::new(seed), &KeepClear::default());
@@ -64,9 +66,11 @@ fn centre_vertex(map: &Map) -> usize {
 #[test]
 fn invariants_hold_on_hundreds_of_random_maps() {
     let (mut maps, mut unreached, mut target, mut skipped) = (0, 0, 0, 0);
+    let mut short = Vec::new();
     for seed in 0..100 {
-        for ratio in [0.0, 0.2, 0.4] {
-            let map = random_map(8.0, ratio, seed);
+        // The generator's obstacles apart, and at 40 % also merged over each other.
+        for (ratio, overlap) in [(0.0, false), (0.2, false), (0.4, false), (0.4, true)] {
+            let map = random_map(8.0, ratio, overlap, seed);
             let children = 1 + (seed as usize % 4);
             // Both view rules, each with every team size (children follow seed % 4).
             let views = if (seed / 4) % 2 == 0 {
@@ -95,13 +99,14 @@ fn invariants_hold_on_hundreds_of_random_maps() {
                     })
                     .collect();
                 panic!(
-                    "seed {seed} ratio {ratio} children {children} parent at {:?}: {e}\n{}",
+                    "seed {seed} ratio {ratio} overlap {overlap} children {children} parent at {:?}: {e}\n{}",
                     map.cell(centre_vertex(&map)),
                     rows.join("\n")
                 )
             });
-            validate(&map, &params, &p)
-                .unwrap_or_else(|e| panic!("seed {seed} ratio {ratio} children {children}: {e}"));
+            validate(&map, &params, &p).unwrap_or_else(|e| {
+                panic!("seed {seed} ratio {ratio} overlap {overlap} children {children}: {e}")
+            });
             // Whatever is reported uncoverable is so because no vertex sees it freely.
             let vis = Visibility::compute(&map, &params);
             for &u in &p.uncoverable {
@@ -111,9 +116,15 @@ fn invariants_hold_on_hundreds_of_random_maps() {
                     .any(|&v| vis.los_free[v].binary_search(&u).is_ok());
                 assert!(
                     !seen,
-                    "seed {seed} ratio {ratio}: {:?} is visible yet was not imaged",
+                    "seed {seed} ratio {ratio} overlap {overlap}: {:?} is visible yet was not imaged",
                     map.cell(u)
                 );
+            }
+            if !p.unreached.is_empty() {
+                short.push(format!(
+                    "seed {seed} ratio {ratio} overlap {overlap} children {children}: {:?}",
+                    p.unreached.iter().map(|&u| map.cell(u)).collect::<Vec<_>>()
+                ));
             }
             unreached += p.unreached.len();
             skipped += p.skipped_stages.len();
@@ -121,16 +132,51 @@ fn invariants_hold_on_hundreds_of_random_maps() {
             maps += 1;
         }
     }
-    assert_eq!(maps, 300);
+    assert_eq!(maps, 400);
     // Eq. 4 of seed 002 promises every vertex some reachable vertex sees freely, and
     // Section IV a stage at every parent vertex: on these cramped 8 x 8 m maps too (one-cell
     // corridors and dead ends at 40 %). Robots that could not pass each other left 416 of
     // 55816 vertices; the moves of `execute/moves.rs` left 4 (one map: a child in a dead
     // end had to come round the parent through the room beyond the corridor) until the
-    // parent learned to let children out from behind it.
+    // parent learned to let children out from behind it. With the obstacles merged, 1 (seed
+    // 43, 4 children: children walled in a dead-end pocket ahead of a grabbing child) until
+    // a failed after-tour try was made again once another vertex was imaged.
     eprintln!("{unreached} of {target} vertices unreached, {skipped} stages skipped");
     assert_eq!(skipped, 0, "stages skipped");
-    assert_eq!(unreached, 0, "{unreached} of {target} vertices unreached");
+    assert_eq!(
+        unreached,
+        0,
+        "{unreached} of {target} vertices unreached:\n{}",
+        short.join("\n")
+    );
+}
+
+/// An 8 x 8 m map at 40 % with merged obstacles (seed 43, 4 children). The last stage's
+/// parent vertex (12, 15) stands at the mouth of a dead-end pocket and is the only vertex
+/// that sees the pocket's first vertex (13, 15) freely; the children the parent pushed into
+/// the pocket ahead of it stand in that vertex's view, walled in. Its first try after the
+/// tour fails; the next vertex's try lets the children out and brings one in alone, and
+/// the second try then images it. (Tried once only, it was left unreached.)
+#[test]
+fn a_vertex_whose_try_failed_is_tried_again_when_the_team_stands_otherwise() {
+    let map = random_map(8.0, 0.4, true, 43);
+    let params = CoverageParams {
+        children: 4,
+        ..CoverageParams::default()
+    };
+    let vis = Visibility::compute(&map, &params);
+    let c = map.at(13, 15).unwrap();
+    let stands: Vec<(usize, usize)> = map
+        .vertices()
+        .into_iter()
+        .filter(|&w| vis.los_free[w].binary_search(&c).is_ok())
+        .map(|w| map.cell(w))
+        .collect();
+    assert_eq!(stands, vec![(12, 15)], "the map this test was written for");
+    let p = plan(&map, &params, centre_vertex(&map), &[]).unwrap();
+    validate(&map, &params, &p).unwrap();
+    assert!(p.revisited.contains(&c), "{:?}", map.cell(c));
+    assert_eq!(p.unreached, Vec::<usize>::new());
 }
 
 /// Table I's 40 % maps with 2 and 3 children (`scenarios/sweeps/table1.toml`'s cells),
@@ -195,7 +241,7 @@ fn a_view_walled_in_by_the_parent_s_stand_is_cleared_from_another_stand() {
 
 #[test]
 fn a_full_size_map_is_covered_and_the_plan_is_reproducible() {
-    let map = random_map(30.0, 0.2, 11);
+    let map = random_map(30.0, 0.2, false, 11);
     let params = CoverageParams::default();
     let a = plan(&map, &params, centre_vertex(&map), &[]).unwrap();
     validate(&map, &params, &a).unwrap();
