@@ -97,29 +97,61 @@ fn following_of(p: &PaperColumn) -> (f64, f64) {
 /// how many of the six columns lie within the paper's spread; then a sentence, computed from
 /// them, on which readings bring the most of the twelve entries within it.
 pub(super) fn tables(ours: [Runs; 2], others: [Runs; 2], readings: &[&str]) -> String {
-    let mut q_table = header("reading") + &paper_row(q_of);
-    let mut f_table = header("reading") + &paper_row(following_of);
-    let rows = std::iter::once(("ours", &ours)).chain(readings.iter().map(|r| (*r, &others)));
-    let mut fits: Vec<(&str, usize)> = Vec::new();
+    let rows: Vec<(String, &[Runs; 2], &str)> = std::iter::once(("ours", &ours))
+        .chain(readings.iter().map(|r| (*r, &others)))
+        .map(|(name, runs)| (format!("`{name}`"), runs, name))
+        .collect();
+    let (md, fits) = q_and_following("reading", &rows);
+    let fits: Vec<(&str, usize)> = rows.iter().map(|r| r.2).zip(fits).collect();
+    format!("{md}{}\n", verdict(&fits, 2 * COLUMN_LABELS.len()))
+}
+
+/// Q and following behaviours beside the paper's, one row per `(label, runs)` (Tables I-II's
+/// runs of one variant), and a sentence, computed from them, on how many of the twelve
+/// entries each brings within the paper's spread.
+pub(super) fn variant_tables(first: &str, rows: &[(&str, [Runs; 2])]) -> String {
+    let rows: Vec<(String, &[Runs; 2], &str)> = rows
+        .iter()
+        .map(|(label, runs)| (label.to_string(), runs, ""))
+        .collect();
+    let (md, fits) = q_and_following(first, &rows);
+    let said: Vec<String> = rows
+        .iter()
+        .zip(&fits)
+        .map(|(r, n)| format!("{} {n}", r.0))
+        .collect();
+    format!(
+        "{md}Entries within the paper's spread, of {}: {}.\n\n",
+        2 * COLUMN_LABELS.len(),
+        said.join("; ")
+    )
+}
+
+/// The Q and following tables (first column named `first`), a row per `(label, runs,
+/// reading)`, and how many of the twelve entries each row has within the paper's spread.
+fn q_and_following(first: &str, rows: &[(String, &[Runs; 2], &str)]) -> (String, Vec<usize>) {
+    let mut q_table = header(first) + &paper_row(q_of);
+    let mut f_table = header(first) + &paper_row(following_of);
     let n = COLUMN_LABELS.len();
-    for (name, runs) in rows {
-        let (q_row, q_in) = row(runs, name, "parent_vertices", q_of);
-        let (f_row, f_in) = row(runs, name, "following", following_of);
+    let mut fits = Vec::new();
+    for (label, runs, reading) in rows {
+        let (q_row, q_in) = row(runs, reading, "parent_vertices", q_of);
+        let (f_row, f_in) = row(runs, reading, "following", following_of);
         let q_fits = q_in.iter().filter(|&&b| b).count();
         let f_fits = f_in.iter().filter(|&&b| b).count();
-        fits.push((name, q_fits + f_fits));
+        fits.push(q_fits + f_fits);
         q_table.push_str(&format!(
-            "| `{name}` | {} | {q_fits} of {n} |\n",
+            "| {label} | {} | {q_fits} of {n} |\n",
             q_row.join(" | ")
         ));
         f_table.push_str(&format!(
-            "| `{name}` | {} | {f_fits} of {n} |\n",
+            "| {label} | {} | {f_fits} of {n} |\n",
             f_row.join(" | ")
         ));
     }
-    format!(
-        "Q = abs(V_p):\n\n{q_table}\nFollowing behaviours:\n\n{f_table}\n{}\n",
-        verdict(&fits, 2 * n)
+    (
+        format!("Q = abs(V_p):\n\n{q_table}\nFollowing behaviours:\n\n{f_table}\n"),
+        fits,
     )
 }
 
@@ -187,7 +219,7 @@ fn verdict(fits: &[(&str, usize)], entries: usize) -> String {
 
 #[cfg(test)]
 mod tests {
-    use super::{q_table, verdict, Runs};
+    use super::{q_table, variant_tables, verdict, Runs};
     use crate::sweep::SweepSummary;
 
     /// A summary of one-axis cells, each with its `parent_vertices` samples.
@@ -239,6 +271,68 @@ mod tests {
         );
         assert!(
             md.contains("in: 0 %, 20 %, 40 %, 1 m, 4 m, 8 m; out: none."),
+            "{md}"
+        );
+    }
+
+    #[test]
+    fn the_variant_tables_count_q_and_following_entries_within() {
+        // One run per column with Q at the paper's mean, and following behaviours either at
+        // the paper's mean (all 12 entries within) or 0 (below every column's spread: the
+        // paper's least mean minus its std is 9.5 - 3.6 at 8 m).
+        let table = |columns: &[(f64, f64, f64)]| SweepSummary {
+            finished: 0,
+            total: 0,
+            cells: columns
+                .iter()
+                .map(|&(x, q, f)| {
+                    let mut c = super::super::testing::test_cell(
+                        &x.to_string(),
+                        "parent_vertices",
+                        &[q],
+                        0,
+                    );
+                    let following = super::super::testing::test_cell("", "following", &[f], 0);
+                    c.metrics.extend(following.metrics);
+                    c.stats.extend(following.stats);
+                    c
+                })
+                .collect(),
+        };
+        let runs = |s| Runs {
+            summary: s,
+            column_axis: 0,
+            reading_axis: None,
+        };
+        let t1 = |zero: bool| {
+            let f = |m: f64| if zero { 0.0 } else { m };
+            table(&[
+                (0.0, 167.0, f(32.5)),
+                (0.2, 180.5, f(54.8)),
+                (0.4, 174.9, f(82.9)),
+            ])
+        };
+        let t2 = |zero: bool| {
+            let f = |m: f64| if zero { 0.0 } else { m };
+            table(&[
+                (1.0, 538.5, f(403.1)),
+                (4.0, 71.2, f(18.4)),
+                (8.0, 42.0, f(9.5)),
+            ])
+        };
+        let (a1, a2, b1, b2) = (t1(false), t2(false), t1(true), t2(true));
+        let md = variant_tables(
+            "maps",
+            &[
+                ("in", [runs(&a1), runs(&a2)]),
+                ("out", [runs(&b1), runs(&b2)]),
+            ],
+        );
+        assert!(md.starts_with("Q = abs(V_p):\n\n| maps |"), "{md}");
+        assert!(md.contains("| out | 0.0 ± 0.0 |"), "{md}");
+        assert!(md.contains("| 0 of 6 |"), "{md}");
+        assert!(
+            md.contains("Entries within the paper's spread, of 12: in 12; out 6."),
             "{md}"
         );
     }
