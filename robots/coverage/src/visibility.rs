@@ -216,6 +216,10 @@ impl Visibility {
                 }
             }
         }
+        let sees: fn(&Map, Vertex, Vertex) -> bool = match params.reading {
+            Reading::LosOpen => line_of_sight_open,
+            _ => line_of_sight,
+        };
         let mut los: Vec<Vec<Vertex>> = vec![Vec::new(); map.len()];
         // Line of sight is symmetric: test each unordered pair once (offsets pointing
         // "forward" in row-major order) and record it for both ends.
@@ -226,11 +230,7 @@ impl Visibility {
                 .filter(|(dc, dr)| *dr > 0 || (*dr == 0 && *dc > 0))
             {
                 if let Some(w) = map.at(c as i64 + dc, r as i64 + dr) {
-                    let seen = match params.reading {
-                        Reading::LosOpen => line_of_sight_open(map, v, w),
-                        _ => line_of_sight(map, v, w),
-                    };
-                    if map.is_free(w) && seen {
+                    if map.is_free(w) && sees(map, v, w) {
                         los[v].push(w);
                         los[w].push(v);
                     }

@@ -304,23 +304,25 @@ mod tests {
             column_axis: 0,
             reading_axis: None,
         };
-        let t1 = |zero: bool| {
-            let f = |m: f64| if zero { 0.0 } else { m };
-            table(&[
-                (0.0, 167.0, f(32.5)),
-                (0.2, 180.5, f(54.8)),
-                (0.4, 174.9, f(82.9)),
-            ])
+        // The paper's (column, Q, following) of Tables I and II (but 2 m).
+        let (t1, t2) = (
+            [(0.0, 167.0, 32.5), (0.2, 180.5, 54.8), (0.4, 174.9, 82.9)],
+            [(1.0, 538.5, 403.1), (4.0, 71.2, 18.4), (8.0, 42.0, 9.5)],
+        );
+        let zero_following = |columns: &[(f64, f64, f64)]| {
+            table(
+                &columns
+                    .iter()
+                    .map(|&(x, q, _)| (x, q, 0.0))
+                    .collect::<Vec<_>>(),
+            )
         };
-        let t2 = |zero: bool| {
-            let f = |m: f64| if zero { 0.0 } else { m };
-            table(&[
-                (1.0, 538.5, f(403.1)),
-                (4.0, 71.2, f(18.4)),
-                (8.0, 42.0, f(9.5)),
-            ])
-        };
-        let (a1, a2, b1, b2) = (t1(false), t2(false), t1(true), t2(true));
+        let (a1, a2, b1, b2) = (
+            table(&t1),
+            table(&t2),
+            zero_following(&t1),
+            zero_following(&t2),
+        );
         let md = variant_tables(
             "maps",
             &[
