@@ -9,6 +9,7 @@ use std::path::Path;
 
 mod obstacles;
 mod readings;
+mod spread;
 mod teams;
 #[cfg(test)]
 mod testing;
@@ -447,34 +448,24 @@ pub fn coverage_report(
         kids2,
     };
     md.push_str(&obstacles::overlap(&apart, &over));
-    md.push_str("## Q and the map's border\n\n`scenarios/sweeps/map-border-table1.toml` and `map-border-table2.toml`: the paper's maps are 30 x 30 m, and it does not say whether their walls lie inside them. Ours stand outside (60 x 60 vertices at 0 %); in these sweeps the walls take the outermost ring of cells (58 x 58 vertices at 0 %, the obstacles covering the given share of the floor inside them). Q; outside: Tables I-II's runs (all numbers of children); inside: one child per map, so its ± is the spread over the 10 maps:\n\n");
-    md.push_str(&readings::q_table(&[
-        (
-            "walls outside the 30 m (ours)",
-            [
-                runs(&s1, &t1, "world.indoor.obstruction_ratio", false)?,
-                runs(&s2, &t2, "coverage.r_los_m", false)?,
-            ],
-        ),
-        (
-            "walls inside the 30 m",
-            [
-                runs(&b1, &bt1, "world.indoor.obstruction_ratio", false)?,
-                runs(&b2, &bt2, "coverage.r_los_m", false)?,
-            ],
-        ),
-    ]));
+    let (ratio, r_los) = ("world.indoor.obstruction_ratio", "coverage.r_los_m");
+    let ours = [runs(&s1, &t1, ratio, false)?, runs(&s2, &t2, r_los, false)?];
+    let others = [runs(&r1, &rt1, ratio, true)?, runs(&r2, &rt2, r_los, true)?];
+    let inside = [
+        runs(&b1, &bt1, ratio, false)?,
+        runs(&b2, &bt2, r_los, false)?,
+    ];
+    md.push_str(&readings::border(ours, inside));
     md.push_str("## Readings of the open points\n\n`scenarios/sweeps/readings-table1.toml` and `readings-table2.toml`: Tables I-II's maps and teams (1 to 8 children) under each other reading of a point Section IV leaves open (`[coverage] reading`), one decision changed at a time: `parent_a_point` (LOS_free drops only the vertices whose view holds the parent's centre, not its disc), `los_strict` (LOS radius < r_los, not <=), `los_open` (a vertex is in LOS when the sight line crosses the inside of no occupied cell, as a camera's does, so it may graze an obstacle cell's corner or pass between two that meet at one; ours may touch no occupied cell), `eq6_last_choice` (Eq. 6's candidates within f of the last parent vertex chosen, not of any), `eq6_every_choice` (Eq. 6 as written, within f of every one chosen; the whole map where none is), `ties_nearest_last` and `ties_nearest_any` (ties in the score to the vertex nearest the last / any choice, then the lowest index), `h_from_los_free` (H = LOS_free ∩ LOS_free, not LOS ∩ LOS as Eq. 8 has it), `tour_8_connected` (the tour's distance transform over the 8 cells around a vertex, each step costing 1 and none cutting an occupied corner, not over the 4 the robots step to: Section IV states 4, so this one only measures what the tour's metric does), `n_uncovered` (n(v) counts the uncovered free vertices around v, not all free ones, so a vertex's weight w_s grows as its neighbours are covered). `ours` is the shipped reading (the runs of Tables I-II above). Mean ± sample standard deviation over the 80 runs of a column; 'within' counts the six distinct columns within the paper's spread (3 % at 0 %, where it gives none). The sentence under the tables, computed from them, names the readings that bring the most entries within it; the README (\"Coverage planning decisions\") says why the shipped readings stay.\n\n");
-    md.push_str(&readings::tables(
-        [
-            runs(&s1, &t1, "world.indoor.obstruction_ratio", false)?,
-            runs(&s2, &t2, "coverage.r_los_m", false)?,
-        ],
-        [
-            runs(&r1, &rt1, "world.indoor.obstruction_ratio", true)?,
-            runs(&r2, &rt2, "coverage.r_los_m", true)?,
-        ],
-        &reading_names,
+    md.push_str(&readings::tables(ours, others, &reading_names));
+    let sizes = readings::Runs {
+        summary: &s4,
+        column_axis: ratio_ax4,
+        reading_axis: None,
+    };
+    md.push_str(&spread::section(
+        &spread::readings(ours, others, &reading_names),
+        &spread::maps(ours, over.runs(), inside, (sizes, sizes_ax4)),
     ));
     md.push_str("## Timesteps and coverage per cell\n\nMean timesteps per cell (mapping + coordination, each mean rounded on its own, so the total may differ from their sum by one), the mean coverage of V \\ V_p, and the least coverage of any run of the cell, of V \\ V_p and of the vertices some vertex sees freely (Eq. 4's promise: 1 wherever its assumption holds; `uncoverable` vertices are the rest), with the stages skipped (a transition the moves could not complete; their vertices are revisited) and the vertices imaged after the tour, summed over the cell. `table1` and `start-points-fig3` are at r_los = 2 m, `table2` and `start-points` at 20 % obstruction; `start-points*` check only the starting points:\n\n| sweep | cell | mapping | coordination | total | coverage | least coverage | least coverable coverage | skipped stages | revisited |\n|---|---|---|---|---|---|---|---|---|---|\n");
     for (name, s, axes) in [

@@ -46,7 +46,7 @@ pub(super) struct Maps<'a> {
 }
 
 impl<'a> Maps<'a> {
-    fn runs(&self) -> [Runs<'a>; 2] {
+    pub(super) fn runs(&self) -> [Runs<'a>; 2] {
         [
             Runs {
                 summary: self.t1,

@@ -7,10 +7,11 @@ use crate::sweep::{SummaryCell, SweepSummary};
 
 /// A column of the paper's Tables I-II: (axis value, Q mean, Q std, following mean,
 /// following std).
-type PaperColumn = (f64, f64, f64, f64, f64);
+pub(super) type PaperColumn = (f64, f64, f64, f64, f64);
 
 /// The runs of one table: a sweep, the axis its columns are on and, for the readings
 /// sweeps, the axis that names the reading.
+#[derive(Clone, Copy)]
 pub(super) struct Runs<'a> {
     pub summary: &'a SweepSummary,
     pub column_axis: usize,
@@ -19,7 +20,7 @@ pub(super) struct Runs<'a> {
 
 impl Runs<'_> {
     /// The cells of column `x` under `reading` (any, for a sweep without a reading axis).
-    fn cells(&self, x: f64, reading: &str) -> Vec<&SummaryCell> {
+    pub(super) fn cells(&self, x: f64, reading: &str) -> Vec<&SummaryCell> {
         self.summary
             .cells
             .iter()
@@ -35,7 +36,7 @@ impl Runs<'_> {
 
 /// The six distinct columns of Tables I-II (Table II's 2 m is Table I's 20 %): which table's
 /// runs, and the paper's (column, Q mean, Q std, following mean, following std).
-fn columns() -> Vec<(usize, PaperColumn)> {
+pub(super) fn columns() -> Vec<(usize, PaperColumn)> {
     PAPER_TABLE1
         .iter()
         .map(|&p| (0, p))
@@ -83,12 +84,12 @@ fn row(
 }
 
 /// Q's mean and std in a paper column.
-fn q_of(p: &PaperColumn) -> (f64, f64) {
+pub(super) fn q_of(p: &PaperColumn) -> (f64, f64) {
     (p.1, p.2)
 }
 
 /// The following behaviours' mean and std in a paper column.
-fn following_of(p: &PaperColumn) -> (f64, f64) {
+pub(super) fn following_of(p: &PaperColumn) -> (f64, f64) {
     (p.3, p.4)
 }
 
@@ -156,7 +157,18 @@ fn q_and_following(first: &str, rows: &[(String, &[Runs; 2], &str)]) -> (String,
 }
 
 /// The six columns' labels, in [`columns`]' order.
-const COLUMN_LABELS: [&str; 6] = ["0 %", "20 %", "40 %", "1 m", "4 m", "8 m"];
+pub(super) const COLUMN_LABELS: [&str; 6] = ["0 %", "20 %", "40 %", "1 m", "4 m", "8 m"];
+
+/// "Q and the map's border": Q with the map's walls outside its 30 m (`ours`: Tables I-II's
+/// runs) and inside them (`inside`: one child per map).
+pub(super) fn border(ours: [Runs; 2], inside: [Runs; 2]) -> String {
+    let mut md = String::from("## Q and the map's border\n\n`scenarios/sweeps/map-border-table1.toml` and `map-border-table2.toml`: the paper's maps are 30 x 30 m, and it does not say whether their walls lie inside them. Ours stand outside (60 x 60 vertices at 0 %); in these sweeps the walls take the outermost ring of cells (58 x 58 vertices at 0 %, the obstacles covering the given share of the floor inside them). Q; outside: Tables I-II's runs (all numbers of children); inside: one child per map, so its ± is the spread over the 10 maps:\n\n");
+    md.push_str(&q_table(&[
+        ("walls outside the 30 m (ours)", ours),
+        ("walls inside the 30 m", inside),
+    ]));
+    md
+}
 
 /// A Q table with the paper's row and one row per `(label, runs)`, and how many of the six
 /// columns lie within the paper's spread; then a sentence, computed from the table, naming
