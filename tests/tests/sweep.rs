@@ -143,16 +143,7 @@ fn regression_passes_on_the_committed_baselines_and_catches_a_moved_metric() {
     // A copy of the repository's inputs with a doctored baseline.
     let tmp = tempfile::tempdir().unwrap();
     let root = tmp.path();
-    for dir in ["scenarios", "robots/models"] {
-        std::fs::create_dir_all(root.join(dir)).unwrap();
-        for e in std::fs::read_dir(repo().join(dir)).unwrap() {
-            let p = e.unwrap().path();
-            if p.is_file() {
-                std::fs::copy(&p, root.join(dir).join(p.file_name().unwrap())).unwrap();
-            }
-        }
-    }
-    std::fs::create_dir_all(root.join("results/baselines")).unwrap();
+    copy_inputs(root);
     let text =
         std::fs::read_to_string(repo().join("results/baselines/indoor-grid-20.json")).unwrap();
     let mut b: Baseline = serde_json::from_str(&text).unwrap();
@@ -169,6 +160,79 @@ fn regression_passes_on_the_committed_baselines_and_catches_a_moved_metric() {
         .map(|r| r.metric.as_str())
         .collect();
     assert_eq!(moved, vec!["parent_vertices"]);
+}
+
+/// Copies the repository's scenarios and robot models into `root`, and makes its
+/// `results/baselines`.
+fn copy_inputs(root: &Path) {
+    for dir in ["scenarios", "robots/models"] {
+        std::fs::create_dir_all(root.join(dir)).unwrap();
+        for e in std::fs::read_dir(repo().join(dir)).unwrap() {
+            let p = e.unwrap().path();
+            if p.is_file() {
+                std::fs::copy(&p, root.join(dir).join(p.file_name().unwrap())).unwrap();
+            }
+        }
+    }
+    std::fs::create_dir_all(root.join("results/baselines")).unwrap();
+}
+
+/// `hetsim regress` fails, naming the requirement, when a plan of its map leaves unimaged a
+/// vertex that some vertex sees freely (Eq. 4's promise), and `--update` then keeps the
+/// baseline. The premise: on indoor-grid-20's map (seed 1) at r_los = 1 m, Eq. 6 read as
+/// written (`eq6_every_choice`, which shrinks the candidates to those within f of every
+/// choice so far) leaves such vertices with 7 and 8 children (`readings-table2`).
+#[test]
+fn regress_fails_when_a_plan_leaves_a_coverable_vertex_unimaged() {
+    let tmp = tempfile::tempdir().unwrap();
+    let root = tmp.path();
+    copy_inputs(root);
+    let base = std::fs::read_to_string(repo().join("scenarios/indoor-grid-20.toml")).unwrap();
+    let short = base.replace(
+        "r_los_m = 2.0",
+        "r_los_m = 1.0\nreading = \"eq6_every_choice\"",
+    );
+    assert_ne!(short, base);
+    std::fs::write(root.join("scenarios/short.toml"), short).unwrap();
+    // A baseline to compare with: indoor-grid-20's (the same seed).
+    let baseline = root.join("results/baselines/short.json");
+    std::fs::copy(
+        repo().join("results/baselines/indoor-grid-20.json"),
+        &baseline,
+    )
+    .unwrap();
+    let before = std::fs::read(&baseline).unwrap();
+    for args in [
+        &["regress", "scenarios/short.toml"][..],
+        &["regress", "--update", "scenarios/short.toml"],
+    ] {
+        let out = std::process::Command::new(hetsim_tests::hetsim_bin())
+            .args(args)
+            .current_dir(root)
+            .output()
+            .unwrap();
+        let (stdout, stderr) = (
+            String::from_utf8_lossy(&out.stdout),
+            String::from_utf8_lossy(&out.stderr),
+        );
+        assert!(!out.status.success(), "{args:?}: {stdout}{stderr}");
+        assert!(
+            stderr.contains("requirement(s) failed"),
+            "{args:?}: {stderr}"
+        );
+        let failed: Vec<&str> = stdout
+            .lines()
+            .filter(|l| l.ends_with("| REQUIREMENT FAILED |"))
+            .collect();
+        assert!(
+            !failed.is_empty()
+                && failed
+                    .iter()
+                    .all(|l| l.contains("| coverable_coverage (children = ")),
+            "{args:?}: {stdout}"
+        );
+        assert_eq!(std::fs::read(&baseline).unwrap(), before, "{args:?}");
+    }
 }
 
 #[test]
