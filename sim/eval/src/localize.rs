@@ -263,6 +263,9 @@ pub struct Summary {
     pub tracking_losses: u64,
     /// Images with another robot in view within r_los, all runs together.
     pub images_with_robot_in_view: u64,
+    /// Images with another robot in view farther than r_los, all runs together (the paper's
+    /// rule holds for every robot the camera can see).
+    pub images_with_distant_robot_in_view: u64,
     /// Cross-validation (paper: WGOH 0.43 ± 0.59 m, pixelwise 0.54 ± 0.79 m).
     pub cross_validation: Vec<FeatureErrors>,
     /// Particle filter along the paths driven in lockstep after mapping, per feature.
@@ -382,6 +385,7 @@ pub fn summarize(
         collisions: total("collisions"),
         tracking_losses: total("tracking_losses"),
         images_with_robot_in_view: total("images_with_robot_in_view"),
+        images_with_distant_robot_in_view: total("images_with_distant_robot_in_view"),
         cross_validation: cross.to_vec(),
         particle_filter,
     }
@@ -409,8 +413,8 @@ pub fn markdown(s: &Summary) -> String {
         ms(&s.heading_error_deg, "°")
     );
     t += &format!(
-        "| collisions, tracking losses, images with a robot in view | {}, {}, {} | none, none, none |\n",
-        s.collisions, s.tracking_losses, s.images_with_robot_in_view
+        "| collisions, tracking losses, images with a robot in view (within r_los; farther) | {}, {}, {}; {} | none, none, none |\n",
+        s.collisions, s.tracking_losses, s.images_with_robot_in_view, s.images_with_distant_robot_in_view
     );
     for c in &s.cross_validation {
         let paper = if c.feature == "wgoh" {
@@ -473,4 +477,36 @@ pub fn markdown(s: &Summary) -> String {
         );
     }
     t
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{markdown, summarize};
+
+    /// The study adds up, over its runs, the images with a robot in view within r_los and
+    /// those with one farther, and its table shows both.
+    #[test]
+    fn the_summary_counts_robots_in_view_within_r_los_and_farther() {
+        let run = |near: u64, far: u64| {
+            serde_json::json!({
+                "finished": true,
+                "imaged": 76,
+                "images_with_robot_in_view": near,
+                "images_with_distant_robot_in_view": far,
+            })
+        };
+        let s = summarize(&[run(1, 0), run(0, 2), run(0, 3)], &[], &[]);
+        assert_eq!(
+            (
+                s.images_with_robot_in_view,
+                s.images_with_distant_robot_in_view
+            ),
+            (1, 5)
+        );
+        let md = markdown(&s);
+        assert!(
+            md.contains("images with a robot in view (within r_los; farther) | 0, 0, 1; 5 |"),
+            "{md}"
+        );
+    }
 }

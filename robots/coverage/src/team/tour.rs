@@ -36,9 +36,10 @@
 //! moves and scraped the work desk (28 contact starts); calibrated (scale 0.95 from 16
 //! hops), it stayed within 0.13 m, and counting the roll too, within 0.08 m, both with 0
 //! contacts (one run each, positions where it stood to image). Part of what is left is the
-//! scale's own bias (the hat tracker places children about 0.9 % too close to the parent's
-//! camera, and a hop's path is about 0.6 % longer than straight: the scale comes out 1-1.5 %
-//! low); the rest, from the compass's noise and the start's estimate, is not measured apart.
+//! scale's own bias (a hop's path is about 0.6 % longer than straight, so the scale comes
+//! out about that much low; when this was measured the hat tracker also placed children
+//! about 0.9 % too close to the parent's camera, since undone: `parent/odometry.rs`); the
+//! rest, from the compass's noise and the start's estimate, is not measured apart.
 
 use super::{Phase, TeamMsg};
 use crate::localize::{ParticleFilter, PfParams, Place};
