@@ -465,7 +465,13 @@ pub fn coverage_report(
     };
     md.push_str(&spread::section(
         &spread::readings(ours, others, &reading_names),
-        &spread::maps(ours, over.runs(), inside, (sizes, sizes_ax4)),
+        &spread::maps(
+            ours,
+            over.runs(),
+            inside,
+            (sizes, sizes_ax4),
+            &spread::shipped_sides(&t1.base_text),
+        ),
     ));
     md.push_str("## Timesteps and coverage per cell\n\nMean timesteps per cell (mapping + coordination, each mean rounded on its own, so the total may differ from their sum by one), the mean coverage of V \\ V_p, and the least coverage of any run of the cell, of V \\ V_p and of the vertices some vertex sees freely (Eq. 4's promise: 1 wherever its assumption holds; `uncoverable` vertices are the rest), with the stages skipped (a transition the moves could not complete; their vertices are revisited) and the vertices imaged after the tour, summed over the cell. `table1` and `start-points-fig3` are at r_los = 2 m, `table2` and `start-points` at 20 % obstruction; `start-points*` check only the starting points:\n\n| sweep | cell | mapping | coordination | total | coverage | least coverage | least coverable coverage | skipped stages | revisited |\n|---|---|---|---|---|---|---|---|---|---|\n");
     for (name, s, axes) in [

@@ -48,24 +48,38 @@ pub(super) fn readings<'a>(
         .collect()
 }
 
+/// The obstacles' sides of the shipped maps as a sweep's axis writes them ("[1, 6]"): the
+/// `[world.indoor] obstacle_cells` of the shipped sweeps' base scenario (`base_text`), or
+/// the generator's default where it gives none.
+pub(super) fn shipped_sides(base_text: &str) -> String {
+    let given = base_text.parse::<toml::Table>().ok().and_then(|t| {
+        t.get("world")?
+            .get("indoor")?
+            .get("obstacle_cells")
+            .map(toml::Value::to_string)
+    });
+    given.unwrap_or_else(|| format!("{:?}", hetsim_scene::IndoorSpec::default().obstacle_cells))
+}
+
 /// The maps: the shipped runs, the obstacles over each other (`over`, 1 to 8 children), the
 /// walls inside the 30 m (`inside`, one child per map) and each range of the obstacles' sides
-/// of `sizes` (Table I only, one child per map; its size axis picks them, by value).
+/// of `sizes` but the shipped maps' (`shipped_sides`: those are the shipped maps again), for
+/// Table I only, one child per map; its size axis picks them, by value.
 pub(super) fn maps<'a>(
     ours: [Runs<'a>; 2],
     over: [Runs<'a>; 2],
     inside: [Runs<'a>; 2],
     sizes: (Runs<'a>, usize),
+    shipped_sides: &str,
 ) -> Vec<Variant<'a>> {
-    let mut sides: Vec<&str> = sizes
-        .0
-        .summary
-        .cells
-        .iter()
-        .map(|c| c.values[sizes.1].as_str())
-        .collect();
-    sides.sort_unstable();
-    sides.dedup();
+    // The sides in the sweep's order, each once, but the shipped maps'.
+    let mut sides: Vec<&str> = Vec::new();
+    for c in &sizes.0.summary.cells {
+        let side = c.values[sizes.1].as_str();
+        if side != shipped_sides && !sides.contains(&side) {
+            sides.push(side);
+        }
+    }
     let whole = |label: &str, runs: [Runs<'a>; 2], following| Variant {
         label: label.to_string(),
         runs: runs.map(Some),
@@ -93,12 +107,12 @@ pub(super) fn maps<'a>(
 }
 
 /// An entry's means under a family of variants: the least and most, how many variants have
-/// one, and the labels of those within the paper's spread.
+/// one, and how many of those lie within the paper's spread.
 struct Moved {
     low: f64,
     high: f64,
     count: usize,
-    within: Vec<String>,
+    within: usize,
 }
 
 impl Moved {
@@ -111,21 +125,17 @@ impl Moved {
         pick: fn(&PaperColumn) -> (f64, f64),
     ) -> Option<Self> {
         let (pm, ps) = pick(&p);
-        let means: Vec<(&str, f64)> = family
+        let means: Vec<f64> = family
             .iter()
             .filter(|v| metric != "following" || v.following)
-            .filter_map(|v| Some((v.label.as_str(), v.mean(table, p.0, metric)?)))
+            .filter_map(|v| v.mean(table, p.0, metric))
             .collect();
-        let first = means.first()?.1;
+        let first = *means.first()?;
         Some(Self {
-            low: means.iter().map(|m| m.1).fold(first, f64::min),
-            high: means.iter().map(|m| m.1).fold(first, f64::max),
+            low: means.iter().copied().fold(first, f64::min),
+            high: means.iter().copied().fold(first, f64::max),
             count: means.len(),
-            within: means
-                .iter()
-                .filter(|m| within(m.1, pm, ps))
-                .map(|m| m.0.to_string())
-                .collect(),
+            within: means.iter().filter(|&&m| within(m, pm, ps)).count(),
         })
     }
 
@@ -136,7 +146,7 @@ impl Moved {
             self.low,
             self.high,
             (self.high - self.low) / band,
-            self.within.len(),
+            self.within,
             self.count
         )
     }
@@ -177,7 +187,7 @@ pub(super) fn section(readings: &[Variant], maps: &[Variant]) -> String {
                 cells(&r),
                 cells(&m)
             ));
-            let none_within = |f: &Option<Moved>| f.as_ref().is_none_or(|f| f.within.is_empty());
+            let none_within = |f: &Option<Moved>| f.as_ref().is_none_or(|f| f.within == 0);
             if none_within(&r) && none_within(&m) {
                 nowhere.push(entry.clone());
             }
@@ -199,9 +209,19 @@ pub(super) fn section(readings: &[Variant], maps: &[Variant]) -> String {
             v.join(", ")
         }
     };
+    let labels = |family: &[Variant]| {
+        family
+            .iter()
+            .map(|v| v.label.as_str())
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
     md.push_str(&format!(
-        "\nNo variant brings within the paper's spread: {}. The maps move further than the \
-         readings: {}; the readings further than the maps: {}.\n\n",
+        "\nThe readings: {}. The maps: {}.\n\nNo variant brings within the paper's spread: {}. \
+         The maps move further than the readings: {}; the readings further than the maps: \
+         {}.\n\n",
+        labels(readings),
+        labels(maps),
         list(&nowhere),
         list(&maps_further),
         list(&readings_further)
@@ -211,27 +231,38 @@ pub(super) fn section(readings: &[Variant], maps: &[Variant]) -> String {
 
 #[cfg(test)]
 mod tests {
+    use super::{maps, readings};
     use super::{section, Variant};
     use crate::report::readings::Runs;
     use crate::report::testing::test_cell;
-    use crate::sweep::SweepSummary;
+    use crate::sweep::{SummaryCell, SweepSummary};
 
-    /// A one-axis summary: per column (x, Q, following), one run.
-    fn table(columns: &[(f64, f64, f64)]) -> SweepSummary {
+    /// A cell with axis values `values` and one run's Q and following behaviours.
+    fn cell(values: &[&str], q: f64, f: f64) -> SummaryCell {
+        let mut c = test_cell(values[0], "parent_vertices", &[q], 0);
+        c.values = values.iter().map(|v| v.to_string()).collect();
+        let following = test_cell("", "following", &[f], 0);
+        c.metrics.extend(following.metrics);
+        c.stats.extend(following.stats);
+        c
+    }
+
+    fn summary(cells: Vec<SummaryCell>) -> SweepSummary {
         SweepSummary {
             finished: 0,
             total: 0,
-            cells: columns
-                .iter()
-                .map(|&(x, q, f)| {
-                    let mut c = test_cell(&x.to_string(), "parent_vertices", &[q], 0);
-                    let following = test_cell("", "following", &[f], 0);
-                    c.metrics.extend(following.metrics);
-                    c.stats.extend(following.stats);
-                    c
-                })
-                .collect(),
+            cells,
         }
+    }
+
+    /// A one-axis summary: per column (x, Q, following), one run.
+    fn table(columns: &[(f64, f64, f64)]) -> SweepSummary {
+        summary(
+            columns
+                .iter()
+                .map(|&(x, q, f)| cell(&[&x.to_string()], q, f))
+                .collect(),
+        )
     }
 
     fn variant<'a>(
@@ -301,6 +332,70 @@ mod tests {
             md.contains(
                 "The maps move further than the readings: Q 0 %, Q 40 %; the readings further \
                  than the maps: none."
+            ),
+            "{md}"
+        );
+    }
+
+    #[test]
+    fn the_builders_pick_each_variants_cells_and_leave_the_shipped_sides_out() {
+        let paper1 = [(0.0, 167.0, 32.5), (0.2, 180.5, 54.8), (0.4, 174.9, 82.9)];
+        let paper2 = [(1.0, 538.5, 403.1), (4.0, 71.2, 18.4), (8.0, 42.0, 9.5)];
+        let (o1, o2) = (table(&paper1), table(&paper2));
+        // Obstacles over each other: Q at 20 % 190.
+        let mut over = paper1;
+        over[1].1 = 190.0;
+        let v1 = table(&over);
+        // The readings sweeps (column, reading): Q at 40 % 190 under `a`, 210 under `b`.
+        let r1 = summary(vec![
+            cell(&["0.4", "a"], 190.0, 82.9),
+            cell(&["0.4", "b"], 210.0, 82.9),
+        ]);
+        let r2 = summary(vec![cell(&["4", "a"], 71.2, 18.4)]);
+        // The sides sweep (column, sides): the shipped sides, whose 999 must be left out, and
+        // [2, 6].
+        let sides = summary(vec![
+            cell(&["0.4", "[1, 6]"], 999.0, 0.0),
+            cell(&["0.4", "[2, 6]"], 150.0, 0.0),
+        ]);
+        let runs = |s, axis| Runs {
+            summary: s,
+            column_axis: 0,
+            reading_axis: axis,
+        };
+        let ours = [runs(&o1, None), runs(&o2, None)];
+        let readings = readings(ours, [runs(&r1, Some(1)), runs(&r2, Some(1))], &["a", "b"]);
+        let maps = maps(
+            ours,
+            [runs(&v1, None), runs(&o2, None)],
+            ours,
+            (runs(&sides, None), 1),
+            "[1, 6]",
+        );
+        let md = section(&readings, &maps);
+        assert!(
+            md.contains(
+                "The readings: `ours`, `a`, `b`. The maps: not overlapping (ours), over each \
+                 other, walls inside the 30 m, sides [2, 6] cells."
+            ),
+            "{md}"
+        );
+        // Q at 40 %: readings 174.9, 190 and 210 (35.1 / 5.4 = 6.5 deviations); maps 174.9
+        // three times and 150 (24.9 / 5.4 = 4.6).
+        assert!(
+            md.contains("| Q 40 % | 174.9 ± 5.4 | 174.9 | 174.9 to 210.0 | 6.5 | 1 of 3 | 150.0 to 174.9 | 4.6 | 3 of 4 |"),
+            "{md}"
+        );
+        // Q at 20 %: the maps move it (9.5 / 4.1 = 2.3), the readings have only ours there, so
+        // neither family is said to move it further.
+        assert!(
+            md.contains("| Q 20 % | 180.5 ± 4.1 | 180.5 | 180.5 to 180.5 | 0.0 | 1 of 1 | 180.5 to 190.0 | 2.3 | 2 of 3 |"),
+            "{md}"
+        );
+        assert!(
+            md.contains(
+                "No variant brings within the paper's spread: none. The maps move further than \
+                 the readings: none; the readings further than the maps: Q 40 %."
             ),
             "{md}"
         );
