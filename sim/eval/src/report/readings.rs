@@ -297,18 +297,7 @@ mod tests {
             total: 0,
             cells: columns
                 .iter()
-                .map(|&(x, q, f)| {
-                    let mut c = super::super::testing::test_cell(
-                        &x.to_string(),
-                        "parent_vertices",
-                        &[q],
-                        0,
-                    );
-                    let following = super::super::testing::test_cell("", "following", &[f], 0);
-                    c.metrics.extend(following.metrics);
-                    c.stats.extend(following.stats);
-                    c
-                })
+                .map(|&(x, q, f)| super::super::testing::q_following_cell(&[&x.to_string()], q, f))
                 .collect(),
         };
         let runs = |s| Runs {

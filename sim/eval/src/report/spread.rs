@@ -234,18 +234,8 @@ mod tests {
     use super::{maps, readings};
     use super::{section, Variant};
     use crate::report::readings::Runs;
-    use crate::report::testing::test_cell;
+    use crate::report::testing::q_following_cell as cell;
     use crate::sweep::{SummaryCell, SweepSummary};
-
-    /// A cell with axis values `values` and one run's Q and following behaviours.
-    fn cell(values: &[&str], q: f64, f: f64) -> SummaryCell {
-        let mut c = test_cell(values[0], "parent_vertices", &[q], 0);
-        c.values = values.iter().map(|v| v.to_string()).collect();
-        let following = test_cell("", "following", &[f], 0);
-        c.metrics.extend(following.metrics);
-        c.stats.extend(following.stats);
-        c
-    }
 
     fn summary(cells: Vec<SummaryCell>) -> SweepSummary {
         SweepSummary {

@@ -17,3 +17,14 @@ pub(super) fn test_cell(value: &str, metric: &str, samples: &[f64], missing: usi
         runs: samples.len() + missing,
     }
 }
+
+/// A sweep cell for the report's unit tests with axis values `values` and one run's Q
+/// (`parent_vertices`) and following behaviours.
+pub(super) fn q_following_cell(values: &[&str], q: f64, following: f64) -> SummaryCell {
+    let mut c = test_cell(values[0], "parent_vertices", &[q], 0);
+    c.values = values.iter().map(|v| v.to_string()).collect();
+    let f = test_cell("", "following", &[following], 0);
+    c.metrics.extend(f.metrics);
+    c.stats.extend(f.stats);
+    c
+}
