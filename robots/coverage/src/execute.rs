@@ -71,7 +71,7 @@ mod together;
 /// is made again after another vertex is imaged, since the team then stands otherwise: in
 /// a dead-end pocket, a grabbing child with children walled in its view ahead of it fails,
 /// and the next vertex's try lets them out and brings one child in alone (an 8 x 8 m map
-/// at 40 % with merged obstacles, 4 children: `tests/tests/coverage.rs`'s invariants).
+/// at 40 % with merged obstacles, 4 children: `tests/tests/it/coverage.rs`'s invariants).
 const REVISIT_TRIES: u8 = 2;
 
 /// Why a stage transition was a following behaviour (Section IV.D).

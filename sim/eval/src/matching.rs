@@ -4,7 +4,7 @@
 //! * **False match**: an accepted `image_match` link whose measured relative pose is more than
 //!   [`FALSE_M`] or [`FALSE_DEG`] from the true one (the robots' true body poses at the two
 //!   frames). A wrong association lands metres or tens of degrees off; a right one within
-//!   decimetres (`tests/tests/place.rs` measures 0.02-0.1 m and under 0.2 degree on rendered
+//!   decimetres (`tests/tests/it/place.rs` measures 0.02-0.1 m and under 0.2 degree on rendered
 //!   views). Each link's NEES under its own covariance is reported too.
 //! * **Missed pass**: the truth, not the robot, decides where a match was possible. A robot's
 //!   frame is a chance to match a key frame (any robot's sub-map origin, as its report lists

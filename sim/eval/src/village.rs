@@ -199,7 +199,7 @@ pub fn village_report(runs: &[PathBuf], out: &Path) -> Result<PathBuf, EvalError
                  truth; the rendezvous events come from a sensor with an honest noise model \
                  and do not. The `oracle_pose` sensors drive the waypoint pilots only; the \
                  SLAM stacks never read them \
-                 (`tests/tests/slam.rs`, \
+                 (`tests/tests/it/slam.rs`, \
                  `the_slam_stack_computes_the_same_bytes_with_the_truth_withheld`)."
             );
         }

@@ -58,7 +58,7 @@ impl Default for CoverageSpec {
 }
 
 /// The names `[coverage] reading` takes, "ours" first (`hetsim_coverage::Reading`'s; a test
-/// in `tests/tests/coverage.rs` keeps the two lists the same).
+/// in `tests/tests/it/coverage.rs` keeps the two lists the same).
 pub const READINGS: [&str; 11] = [
     "ours",
     "parent_a_point",
