@@ -67,6 +67,17 @@ pub fn hetsim_release(args: &[&str], env: &[(&str, &str)]) -> Output {
     run_hetsim(hetsim_release_bin(), args, env)
 }
 
+/// [`hetsim`] with these variables taken out of the environment it inherits: a machine
+/// that does not set them.
+pub fn hetsim_without(args: &[&str], removed: &[&str]) -> Output {
+    let mut cmd = Command::new(hetsim_bin());
+    cmd.args(args).current_dir(repo());
+    for k in removed {
+        cmd.env_remove(k);
+    }
+    cmd.output().expect("hetsim starts")
+}
+
 fn run_hetsim(bin: PathBuf, args: &[&str], env: &[(&str, &str)]) -> Output {
     let mut cmd = Command::new(bin);
     cmd.args(args).current_dir(repo());

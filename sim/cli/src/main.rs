@@ -259,12 +259,26 @@ enum Cmd {
 }
 
 fn main() -> ExitCode {
+    quiet_display_probe();
     match real_main() {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             eprintln!("error: {e:#}");
             ExitCode::FAILURE
         }
+    }
+}
+
+/// Headless rendering needs no display, but the graphics stack probes for a Wayland one
+/// (libwayland, loaded by Mesa's EGL and Vulkan drivers), and on a machine without a desktop
+/// session, where `XDG_RUNTIME_DIR` is not set, that probe prints `error: XDG_RUNTIME_DIR is
+/// invalid or not set in the environment.`: an error line on a healthy machine. So point it
+/// at the temporary folder, once, before any thread starts; nothing of ours reads it, and an
+/// absolute path the user set is kept (libwayland refuses any other value the same way).
+fn quiet_display_probe() {
+    let set = std::env::var_os("XDG_RUNTIME_DIR");
+    if !set.is_some_and(|dir| std::path::Path::new(&dir).is_absolute()) {
+        std::env::set_var("XDG_RUNTIME_DIR", std::env::temp_dir());
     }
 }
 
