@@ -34,12 +34,8 @@ const LLVMPIPE_GL: (&str, &str) = ("Gl", "4.5 (Core Profile) Mesa 22.3.6");
 /// one thread also checks that the digest does not depend on the thread count.
 const BACKENDS: [(&str, &str); 2] = [("vulkan", "1"), ("gl", "2")];
 
-/// Runs `args` on each backend and compares with `golden`; at least one must compare.
-fn check_backends(name: &str, args: &[&str], golden: PerAdapter) {
-    check_backends_and(name, args, golden, &|_| {});
-}
-
-/// [`check_backends`], and `outputs` asserts on each run's output folder.
+/// Runs `args` on each backend and compares with `golden`; at least one must compare; and
+/// `outputs` asserts on each run's output folder.
 fn check_backends_and(name: &str, args: &[&str], golden: PerAdapter, outputs: &dyn Fn(&Path)) {
     let mut compared = 0;
     for (backend, threads) in BACKENDS {
@@ -156,7 +152,7 @@ fn assert_tracking(tracking: &Value, min_fixes: u64) {
 // The lab and indoor-team digests moved once, in the commit that made truth an oracle: the
 // children (ctbot, no oracle) no longer receive `<child>/truth` messages, which the digest
 // covered; every stack's commands and radio messages stayed the same bytes (the manifest's
-// `stacks` digests, and tests/tests/oracle.rs). Before: lab 83596783 / d09f1e30, indoor-team
+// `stacks` digests, and tests/tests/it/oracle.rs). Before: lab 83596783 / d09f1e30, indoor-team
 // cfb9f93a / e89fe768 (lavapipe / llvmpipe-GL).
 //
 // Every rendered digest moved again with the renderer's baked, mip-mapped materials (commit
@@ -575,9 +571,12 @@ fn golden_indoor_grid_20_without_cameras() {
     ));
 }
 
+/// The short village in lockstep beside its digest: the cooperative SLAM's events, accuracy
+/// and outputs are asserted on each backend's run
+/// ([`crate::slam::cooperative_slam_corrects_ressac_and_keeps_dala_within_one_percent`]).
 #[test]
 fn golden_rendered_village_short() {
-    check_backends(
+    check_backends_and(
         "village-short",
         &["run", "scenarios/village-short.toml"],
         &[
@@ -592,5 +591,6 @@ fn golden_rendered_village_short() {
                 "839105d1fbba9f9da6a070cd3b56992595449dfca0e6addfa085366995d3950d",
             ),
         ],
+        &crate::slam::cooperative_slam_corrects_ressac_and_keeps_dala_within_one_percent,
     );
 }
