@@ -11,6 +11,17 @@ use std::process::Command;
 /// NEES): its 2.5 % and 97.5 % quantiles, from any chi-square table.
 const CHI2_6_95: (f64, f64) = (1.2373, 14.4494);
 
+/// The run's digest on Mesa 22.3.6's lavapipe (the adapter and driver as the manifest records
+/// them), the one `results/village/` holds for seed 1 and the README's main command gave on a
+/// fresh machine: code that is only moved must keep it. Another adapter renders other pixels,
+/// so its digest is reported and not compared. Regenerating it is legitimate only in a commit
+/// of its own that says which change moved it and why (DESIGN.md, determinism contract).
+const LAVAPIPE_DIGEST: (&str, &str, &str) = (
+    "Vulkan",
+    "llvmpipe Mesa 22.3.6 (LLVM 15.0.6)",
+    "129294241a76c50c8930132e1aa318b426ee11fde44cb4094d36adb48128a181",
+);
+
 #[test]
 fn the_full_village_earns_fig_7_with_consistent_covariances() {
     let dir = tempfile::tempdir().unwrap();
@@ -25,7 +36,19 @@ fn the_full_village_earns_fig_7_with_consistent_covariances() {
         .current_dir(repo())
         .output()
         .expect("hetsim starts");
-    assert!(!printed_digest(&o).is_empty());
+    let digest = printed_digest(&o);
+    let manifest: Value =
+        serde_json::from_slice(&std::fs::read(out.join("manifest.json")).unwrap()).unwrap();
+    let adapter = &manifest["adapter"];
+    let (backend, driver) = (
+        adapter["backend"].as_str().unwrap_or("none"),
+        adapter["driver"].as_str().unwrap_or("none"),
+    );
+    if (backend, driver) == (LAVAPIPE_DIGEST.0, LAVAPIPE_DIGEST.1) {
+        assert_eq!(digest, LAVAPIPE_DIGEST.2, "the full village's digest moved");
+    } else {
+        eprintln!("village: no recorded digest for {backend} / {driver}; {digest} not compared");
+    }
     let m: Value =
         serde_json::from_slice(&std::fs::read(out.join("metrics.json")).unwrap()).unwrap();
     assert_eq!(m["sim_secs"].as_f64().unwrap().round(), 600.0);
