@@ -158,34 +158,7 @@ enum Cmd {
     /// planning (`kind = "plan"`); `--slurm` writes (and with `--submit` submits) it as a
     /// Slurm job array with a dependent merge job; `hetsim sweep merge SWEEP.toml
     /// SHARD_DIR... --out DIR` joins shards.
-    Sweep {
-        /// The sweep file, or `merge`.
-        target: String,
-        /// With `merge`: the sweep file, then the shard folders.
-        more: Vec<PathBuf>,
-        /// Parallel runs (default: all cores); with --slurm, CPUs per array task (default 1).
-        #[arg(long)]
-        jobs: Option<usize>,
-        /// Output folder (default: results/runs/sweep-<name>).
-        #[arg(long)]
-        out: Option<PathBuf>,
-        /// Run only shard K of N (1-based), e.g. `--shard 2/4`.
-        #[arg(long)]
-        shard: Option<String>,
-        /// Write OUT/slurm/{array.sbatch, merge.sbatch, submit.sh} instead of running.
-        #[arg(long)]
-        slurm: bool,
-        /// With --slurm: submit the array and the merge job (sbatch must be on PATH).
-        #[arg(long)]
-        submit: bool,
-        /// With --slurm: array tasks, one shard each (default: the runs, at most 32).
-        #[arg(long)]
-        shards: Option<usize>,
-        /// With --slurm: an extra #SBATCH option for both jobs, e.g. --sbatch=--partition=long
-        /// (repeatable).
-        #[arg(long, allow_hyphen_values = true)]
-        sbatch: Vec<String>,
-    },
+    Sweep(study::SweepArgs),
     /// Write results/coverage-tables.md and its figures (`hetsim report coverage`: runs or
     /// resumes the table1 and table2 sweeps first), or a village run's results page
     /// (`hetsim report village RUN_DIR [RUN_DIR ...]`: results/village/ from the run's folder,
@@ -316,9 +289,9 @@ fn real_main() -> Result<()> {
                     out: out.as_deref(),
                     record: record.as_deref().map(|p| {
                         let encoding = if record_encoding == "json" {
-                            hetsim_engine::record::RecordEncoding::Json
+                            hetsim_io::RecordEncoding::Json
                         } else {
-                            hetsim_engine::record::RecordEncoding::Ros2
+                            hetsim_io::RecordEncoding::Ros2
                         };
                         (p, encoding)
                     }),
@@ -415,27 +388,7 @@ fn real_main() -> Result<()> {
             out,
             jobs,
         } => study::report(&what, run, out, jobs)?,
-        Cmd::Sweep {
-            target,
-            more,
-            jobs,
-            out,
-            shard,
-            slurm,
-            submit,
-            shards,
-            sbatch,
-        } => study::sweep(study::SweepArgs {
-            target,
-            more,
-            jobs,
-            out,
-            shard,
-            slurm,
-            submit,
-            shards,
-            sbatch,
-        })?,
+        Cmd::Sweep(args) => study::sweep(args)?,
         Cmd::Regress { update, scenarios } => study::regress(update, scenarios)?,
         Cmd::Bench {
             scenarios,

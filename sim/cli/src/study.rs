@@ -92,25 +92,34 @@ pub fn regress(update: bool, scenarios: Vec<String>) -> Result<()> {
     Ok(())
 }
 
-/// What `hetsim sweep` was asked.
+/// What `hetsim sweep` was asked: its command-line arguments.
+#[derive(clap::Args)]
 pub struct SweepArgs {
     /// The sweep file, or `merge`.
     pub target: String,
     /// With `merge`: the sweep file, then the shard folders.
     pub more: Vec<PathBuf>,
-    /// Parallel runs (with `--slurm`: CPUs per array task).
+    /// Parallel runs (default: all cores); with --slurm, CPUs per array task (default 1).
+    #[arg(long)]
     pub jobs: Option<usize>,
-    /// Output folder.
+    /// Output folder (default: results/runs/sweep-<name>).
+    #[arg(long)]
     pub out: Option<PathBuf>,
-    /// `K/N`.
+    /// Run only shard K of N (1-based), e.g. `--shard 2/4`.
+    #[arg(long)]
     pub shard: Option<String>,
-    /// Write Slurm scripts instead of running.
+    /// Write OUT/slurm/{array.sbatch, merge.sbatch, submit.sh} instead of running.
+    #[arg(long)]
     pub slurm: bool,
-    /// Submit them.
+    /// With --slurm: submit the array and the merge job (sbatch must be on PATH).
+    #[arg(long)]
     pub submit: bool,
-    /// Array tasks.
+    /// With --slurm: array tasks, one shard each (default: the runs, at most 32).
+    #[arg(long)]
     pub shards: Option<usize>,
-    /// Extra `#SBATCH` options.
+    /// With --slurm: an extra #SBATCH option for both jobs, e.g. --sbatch=--partition=long
+    /// (repeatable).
+    #[arg(long, allow_hyphen_values = true)]
     pub sbatch: Vec<String>,
 }
 
