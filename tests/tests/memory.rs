@@ -122,7 +122,7 @@ fn robot_software_heap_over_a_recording() {
     );
     static ONE: Mutex<()> = Mutex::new(());
     let _one = ONE.lock().unwrap();
-    let mut rec = hetsim_engine::replay::McapRecording::open(&path).unwrap();
+    let mut rec = hetsim_io::McapRecording::open(&path).unwrap();
     let run = rec.run.clone();
     let s = hetsim_scene::load_scenario_text(
         &run.scenario_path,

@@ -34,7 +34,7 @@ pub fn replay(scenario: &Path, sim_secs: f64, out: Option<&Path>) -> Result<Figu
         &loaded,
         &Job {
             out: Some(&kept),
-            record: Some((&rec, hetsim_engine::record::RecordEncoding::Ros2)),
+            record: Some((&rec, hetsim_io::RecordEncoding::Ros2)),
             render: Some(hetsim_render::RenderOptions::default()),
             dump: None,
             open_loop: false,

@@ -1,8 +1,8 @@
 //! Running one scenario and writing its results: `hetsim run` and `hetsim frames`.
 
 use anyhow::{Context, Result};
-use hetsim_engine::frames::FrameDump;
-use hetsim_engine::record::{RecordEncoding, Recorder};
+use hetsim_io::record::{RecordEncoding, Recorder};
+use hetsim_io::FrameDump;
 use hetsim_render::RenderOptions;
 use hetsim_scene::{load_scenario, LoadOptions, Scenario};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
@@ -172,9 +172,13 @@ pub fn run_scenario(loaded: &Scenario, job: &Job<'_>) -> Result<hetsim_eval::Run
         .clone()
         .map(|(window, cameras)| FrameDump::new(&staging, window, cameras));
     let options = hetsim_engine::RunOptions {
-        recorder: recorder.as_mut(),
+        recorder: recorder
+            .as_mut()
+            .map(|r| r as &mut dyn hetsim_engine::RunRecorder),
         render: job.render.clone(),
-        dump: dumper.as_mut(),
+        dump: dumper
+            .as_mut()
+            .map(|d| d as &mut dyn hetsim_engine::FrameSink),
         frames_only,
     };
     let stacks = hetsim_stacks::build_stacks(loaded, job.open_loop);

@@ -2,8 +2,9 @@
 //! robot software with no physics and no rendering; the results folder a live run writes.
 
 use anyhow::{bail, Context, Result};
-use hetsim_engine::replay::euroc_in::BenchSpec;
-use hetsim_engine::replay::{EurocRecording, McapRecording, Recording};
+use hetsim_engine::replay::Recording;
+use hetsim_io::euroc_in::BenchSpec;
+use hetsim_io::{EurocRecording, McapRecording};
 use hetsim_scene::{load_scenario_text, LoadOptions, Scenario};
 use std::path::{Path, PathBuf};
 

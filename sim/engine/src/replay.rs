@@ -18,21 +18,17 @@
 
 use crate::comms::Comms;
 use crate::output::{RobotOutcome, RunOutput};
-use crate::record::RecordedOutcome;
-use crate::run::{encode, hash_encoded, oracles, truth_buffers};
+use crate::run::oracles;
+use crate::sinks::RecordedOutcome;
+use crate::stages::{
+    self, publish, report_every, step_stacks, truth_buffers, Ending, Kept, Post, StackTopics,
+    Stacks,
+};
 use hetsim_core::{RunDigest, Streams};
 use hetsim_msgs::{Command, InputError, Pose, PoseStamped, RobotStack, SensorMsg};
 use hetsim_scene::{Scenario, Sensor};
-use rayon::prelude::*;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
-
-pub(crate) mod cdr_in;
-pub mod euroc_in;
-mod mcap_in;
-
-pub use euroc_in::EurocRecording;
-pub use mcap_in::McapRecording;
 
 /// The run a recording holds, as its `hetsim.run` metadata describes it.
 #[derive(Clone, Debug, PartialEq)]
@@ -124,21 +120,6 @@ pub trait Recording {
     }
 }
 
-impl Recording for McapRecording {
-    fn next_logged(&mut self) -> Result<Option<Logged>, ReplayError> {
-        McapRecording::next_logged(self)
-    }
-    fn outcome(&self) -> Option<&[RecordedOutcome]> {
-        self.outcome.as_ref().map(|(_, r)| r.as_slice())
-    }
-    fn ticks(&self) -> Option<u64> {
-        self.outcome.as_ref().map(|(t, _)| *t)
-    }
-    fn has_commands(&self) -> bool {
-        true
-    }
-}
-
 /// Why a replay stopped.
 #[derive(Debug, thiserror::Error)]
 pub enum ReplayError {
@@ -226,7 +207,7 @@ pub fn replay(
 /// the estimators compute must not change, for they read no truth.
 pub fn replay_withholding_truth(
     scenario: &Scenario,
-    mut stacks: Vec<Option<Box<dyn RobotStack>>>,
+    mut stacks: Stacks,
     recording: &mut dyn Recording,
     withhold_truth: bool,
     mut progress: impl FnMut(u64, u64) + Send,
@@ -251,7 +232,11 @@ pub fn replay_withholding_truth(
         names.clone(),
         Streams::new(scenario.seed),
     );
+    let topics = StackTopics::of(&names);
     let mut stack_digests: Vec<RunDigest> = (0..n).map(|_| RunDigest::new()).collect();
+    let truth_period = clock
+        .period_ticks(scenario.file.truth_rate_hz)
+        .expect("validated truth rate");
     let next = recording.next_logged()?;
     let mut feed = Feed {
         scenario,
@@ -263,23 +248,12 @@ pub fn replay_withholding_truth(
             oracles(scenario)
         },
         lasers: laser_angles(scenario),
-        truth_period: clock
-            .period_ticks(scenario.file.truth_rate_hz)
-            .expect("validated truth rate"),
+        truth_period,
         active: active.clone(),
-        digest: RunDigest::new(),
-        counts: BTreeMap::new(),
-        truth: truth_buffers(
-            n,
-            clock.ticks_in(scenario.duration_secs)
-                / clock
-                    .period_ticks(scenario.file.truth_rate_hz)
-                    .expect("validated truth rate")
-                + 2,
-        ),
+        post: Post::new(names.clone(), None),
+        truth: truth_buffers(n, clock.ticks_in(scenario.duration_secs) / truth_period + 2),
         position: vec![[0.0; 3]; n],
         last_pose: vec![None; n],
-        inboxes: vec![Vec::new(); n],
         radio: Vec::new(),
         recorded_cmd: vec![None; n],
     };
@@ -288,12 +262,11 @@ pub fn replay_withholding_truth(
         .ticks_in(scenario.duration_secs)
         .min(feed.recording.ticks().unwrap_or(u64::MAX));
     let checked = feed.recording.has_commands() && !withhold_truth;
-    let report_every = clock.ticks_in(1.0).min(total / 100).max(1);
-    let mut end = total;
-    let linger = clock.ticks_in(2.0);
+    let report_every = report_every(clock, total);
+    let mut ending = Ending::new(clock, total);
     let mut ticks = 0;
     for tick in 0..total {
-        if tick >= end {
+        if ending.reached(tick) {
             break;
         }
         let now = clock.time_ns(tick);
@@ -301,19 +274,10 @@ pub fn replay_withholding_truth(
         feed.drain(tick)?;
         ticks = tick + 1;
         // 2. The stacks, in parallel; the first refusal in robot order stops the replay.
-        let results: Vec<Option<Result<Command, InputError>>> = stacks
-            .par_iter_mut()
-            .zip(feed.inboxes.par_iter_mut())
-            .map(|(stack, inbox)| {
-                let cmd = stack.as_mut().map(|s| s.step(now, inbox));
-                inbox.clear();
-                cmd
-            })
-            .collect();
-        let mut statuses = Vec::with_capacity(n);
+        let results = step_stacks(&mut stacks, &mut feed.post.inboxes, now);
+        let mut over = false;
         for (i, result) in results.into_iter().enumerate() {
             let Some(result) = result else {
-                statuses.push(None);
                 continue;
             };
             let cmd = result.map_err(|error| ReplayError::Input {
@@ -329,20 +293,21 @@ pub fn replay_withholding_truth(
                     replayed: format!("{cmd:?}"),
                 });
             }
-            let stack = stacks[i].as_mut().expect("an active robot has a stack");
+            let stack = stacks[i]
+                .as_deref_mut()
+                .expect("an active robot has a stack");
             // The status right after the step, before the outbox is read, as the live run.
-            statuses.push(Some(stack.status()));
-            let topic = format!("{}/cmd", names[i]);
-            let bytes = encode(&cmd);
-            feed.digest.record(&topic, &bytes);
-            stack_digests[i].record(&topic, &bytes);
-            let radio_topic = format!("{}/radio", names[i]);
-            for msg in stack.outbox() {
-                let bytes = encode(&msg);
-                feed.digest.record(&radio_topic, &bytes);
-                stack_digests[i].record(&radio_topic, &bytes);
-                comms.send(tick, i, msg, &feed.position);
-            }
+            over |= stack.status().mission_over;
+            publish(
+                stack,
+                i,
+                tick,
+                &cmd,
+                &topics,
+                (&mut feed.post.digest, &mut stack_digests[i]),
+                &mut comms,
+                &feed.position,
+            );
         }
         // 3. Radio deliveries at the end of this tick, fed at the next.
         for (to, delivered) in comms.deliver(tick + 1) {
@@ -350,9 +315,7 @@ pub fn replay_withholding_truth(
                 feed.radio.push((to, SensorMsg::Comms(delivered)));
             }
         }
-        if end == total && statuses.iter().flatten().any(|s| s.mission_over) {
-            end = (tick + 1 + linger).min(total);
-        }
+        ending.after(tick, over);
         if tick % report_every == 0 {
             progress(tick, total);
         }
@@ -362,8 +325,7 @@ pub fn replay_withholding_truth(
     feed.drain(ticks)?;
     let Feed {
         recording,
-        digest,
-        counts,
+        post,
         truth,
         last_pose,
         ..
@@ -380,7 +342,7 @@ pub fn replay_withholding_truth(
                 model: r.spec.model.clone(),
                 distance_m: measured.map_or(0.0, |m| m.distance_m),
                 collisions: measured.map_or(0, |m| m.collisions),
-                status: stacks[i].as_ref().map(|s| s.status()).unwrap_or_default(),
+                status: stages::status_of(&stacks[i]),
                 final_position_m: last_pose[i].map_or([0.0; 3], |p| p.translation.vector.into()),
                 stack_digest: if active[i] {
                     stack_digests[i].hex()
@@ -390,26 +352,18 @@ pub fn replay_withholding_truth(
             }
         })
         .collect();
-    Ok(RunOutput {
-        ticks,
-        sim_secs: clock.time_secs(ticks),
-        records: digest.records(),
-        robots,
-        truth: names.iter().cloned().zip(truth).collect(),
-        artifacts: names
-            .iter()
-            .cloned()
-            .zip(
-                stacks
-                    .iter()
-                    .map(|s| s.as_ref().map(|s| s.artifacts()).unwrap_or_default()),
-            )
-            .collect(),
-        messages: counts,
-        comms: comms.stats.clone(),
-        digest,
-        adapter: None,
-    })
+    Ok(stages::output(
+        clock,
+        &stacks,
+        &comms,
+        Kept {
+            ticks,
+            post,
+            robots,
+            truth,
+            adapter: None,
+        },
+    ))
 }
 
 /// The recording's events turned into the robots' inboxes, tick by tick.
@@ -422,14 +376,13 @@ struct Feed<'a> {
     lasers: BTreeMap<String, (f64, f64, f64)>,
     truth_period: u64,
     active: Vec<bool>,
-    digest: RunDigest,
-    counts: BTreeMap<String, u64>,
+    /// The stacks' inboxes, the digest and the counts (no recorder).
+    post: Post<'static>,
     /// Truth at the truth rate, for evaluation.
     truth: Vec<Vec<(u64, Pose)>>,
     /// Where each robot is now (the radio's range).
     position: Vec<[f64; 3]>,
     last_pose: Vec<Option<Pose>>,
-    inboxes: Vec<Vec<SensorMsg>>,
     /// Radio deliveries for the next tick, in arrival order: (robot, message).
     radio: Vec<(usize, SensorMsg)>,
     /// The recorded command of this tick, per robot.
@@ -513,31 +466,8 @@ impl Feed<'_> {
 
     /// A message into an inbox, the digest and the counts, as the live run posts it.
     fn post(&mut self, robot: usize, topic: &str, msg: SensorMsg) {
-        post(
-            &mut self.digest,
-            &mut self.counts,
-            &mut self.inboxes[robot],
-            topic,
-            msg,
-        );
+        self.post.deliver(robot, topic, msg, None);
     }
-}
-
-/// A message into an inbox, the digest and the counts, as the live run posts it.
-fn post(
-    digest: &mut RunDigest,
-    counts: &mut BTreeMap<String, u64>,
-    inbox: &mut Vec<SensorMsg>,
-    topic: &str,
-    msg: SensorMsg,
-) {
-    if let SensorMsg::Image(_) = &msg {
-        digest.record_hashed(topic, hash_encoded(&msg));
-    } else {
-        digest.record(topic, &encode(&msg));
-    }
-    *counts.entry(topic.to_string()).or_default() += 1;
-    inbox.push(msg);
 }
 
 /// Each laser's exact angles and range (`<robot>/<laser>` -> (first angle, increment,

@@ -313,7 +313,7 @@ pub fn load_sweep(path: &Path) -> Result<Sweep, SweepError> {
     let (base, base_text, recording) = match &file.recording {
         Some(rec) => {
             let at = path.parent().unwrap_or(Path::new(".")).join(rec);
-            let opened = hetsim_engine::replay::McapRecording::open(&at).map_err(|e| {
+            let opened = hetsim_io::McapRecording::open(&at).map_err(|e| {
                 field(
                     "recording",
                     format!("\"{rec}\""),

@@ -3,8 +3,8 @@
 //! laser scan's angles, which `sensor_msgs/LaserScan` holds as `float32`: replay takes them
 //! from the robot file, see `replay.rs`).
 
-use super::Event;
 use crate::record::ros2::{Compass, GpsLocal, Header, Imu, Pose, PoseStamped, Time, WheelOdometry};
+use hetsim_engine::replay::Event;
 use hetsim_msgs::{
     ChildTracks, Command, CompassReading, Delivered, GpsFix, Image, ImageMatch, ImuSample,
     LaserScan, PixelEncoding, Rendezvous, SensorMsg, Track,

@@ -19,8 +19,8 @@
 //! rectified. A dataset's ground truth becomes the robot's oracle where its robot file
 //! declares one (the pilot's truth), in the dataset's own world frame.
 
-use super::{Event, Logged, Recording, ReplayError};
-use crate::record::RecordedOutcome;
+use hetsim_engine::replay::{Event, Logged, Recording, ReplayError};
+use hetsim_engine::RecordedOutcome;
 use hetsim_msgs::{Image, PixelEncoding, SensorMsg};
 use std::collections::VecDeque;
 use std::path::{Path, PathBuf};

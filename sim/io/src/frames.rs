@@ -23,9 +23,9 @@
 //! within the same time window. Frames: the world is x east, y north, z up (REP-103; EuRoC's
 //! `R`); the body `B` is the robot's `base_link`; each sensor's `T_BS` is `body_from_sensor`.
 
-use crate::cameras::Shot;
-use crate::output::tum_line;
 use hetsim_core::files::FileError;
+use hetsim_engine::cameras::Shot;
+use hetsim_engine::{tum_line, FrameSink, ImuSpec, SinkError};
 use hetsim_msgs::{ImuSample, PixelEncoding, Pose};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -60,23 +60,6 @@ pub enum FrameError {
         /// Values given.
         bytes: usize,
     },
-}
-
-/// An IMU of a robot, as the dataset describes it.
-#[derive(Clone, Debug)]
-pub struct ImuSpec {
-    /// `<robot>/<imu>`.
-    pub topic: String,
-    /// Samples per second (after rounding to whole ticks).
-    pub rate_hz: f64,
-    /// Angular-rate white noise per sample, rad/s.
-    pub gyro_sigma_radps: f64,
-    /// Acceleration white noise per sample, m/s^2.
-    pub accel_sigma_mps2: f64,
-    /// `body_from_sensor`.
-    pub body_from_sensor: Pose,
-    /// The run's true constant biases `(gyro rad/s, accel m/s^2)` in the sensor frame.
-    pub bias: ([f64; 3], [f64; 3]),
 }
 
 struct CamSlot {
@@ -310,5 +293,23 @@ impl FrameDump {
             write(dir.join("sensor.yaml"), euroc::GROUNDTRUTH_YAML)?;
         }
         Ok(())
+    }
+}
+
+impl FrameSink for FrameDump {
+    fn begin(&mut self, camera_topics: &[String], imus: &[ImuSpec]) {
+        FrameDump::begin(self, camera_topics, imus);
+    }
+    fn wants_frame(&self, topic: &str, stamp_ns: u64) -> bool {
+        self.wants(topic) && self.in_window(stamp_ns)
+    }
+    fn write(&mut self, shot: &Shot) -> Result<(), SinkError> {
+        Ok(FrameDump::write(self, shot)?)
+    }
+    fn imu(&mut self, topic: &str, sample: &ImuSample) {
+        FrameDump::imu(self, topic, sample);
+    }
+    fn finish(&self, truth: &[(&str, &[(u64, Pose)])]) -> Result<(), SinkError> {
+        Ok(FrameDump::finish(self, truth)?)
     }
 }

@@ -7,9 +7,10 @@
 //! framing is checked when it is opened, so a truncated recording is refused before replay
 //! starts; a flipped byte inside a chunk is caught by the chunk's CRC when replay reaches it.
 
-use super::cdr_in::{self, Decoded};
-use super::{Logged, ReplayError, RunDescription};
-use crate::record::{RecordedOutcome, OUTCOME_METADATA, RUN_METADATA};
+use crate::cdr_in::{self, Decoded};
+use crate::record::{OUTCOME_METADATA, RUN_METADATA};
+use hetsim_engine::replay::{Logged, Recording, ReplayError, RunDescription};
+use hetsim_engine::RecordedOutcome;
 use mcap::records::Record;
 use std::collections::{BTreeMap, HashMap};
 use std::os::unix::fs::FileExt;
@@ -17,6 +18,21 @@ use std::path::{Path, PathBuf};
 
 /// Largest chunk hetsim decompresses (a corrupt header could ask for any size).
 const MAX_CHUNK_BYTES: u64 = 1 << 30;
+
+impl Recording for McapRecording {
+    fn next_logged(&mut self) -> Result<Option<Logged>, ReplayError> {
+        McapRecording::next_logged(self)
+    }
+    fn outcome(&self) -> Option<&[RecordedOutcome]> {
+        self.outcome.as_ref().map(|(_, r)| r.as_slice())
+    }
+    fn ticks(&self) -> Option<u64> {
+        self.outcome.as_ref().map(|(t, _)| *t)
+    }
+    fn has_commands(&self) -> bool {
+        true
+    }
+}
 
 /// A recording, open for reading.
 pub struct McapRecording {
@@ -179,7 +195,7 @@ impl McapRecording {
                 ))
             }
         };
-        let run = RunDescription::from_metadata(metadata.get(RUN_METADATA))
+        let run = run_description(metadata.get(RUN_METADATA))
             .map_err(|w| bad(0, format!("{w}: not a recording hetsim run --record wrote")))?;
         let outcome = metadata
             .get(OUTCOME_METADATA)
@@ -432,34 +448,33 @@ impl McapRecording {
     }
 }
 
-impl RunDescription {
-    fn from_metadata(m: Option<&BTreeMap<String, String>>) -> Result<Self, String> {
-        let m = m.ok_or_else(|| format!("no \"{RUN_METADATA}\" metadata record"))?;
-        let get = |k: &str| {
-            m.get(k)
-                .ok_or_else(|| format!("the \"{RUN_METADATA}\" metadata has no \"{k}\""))
-        };
-        let number = |k: &str| -> Result<f64, String> {
-            get(k)?
-                .parse::<f64>()
-                .map_err(|e| format!("\"{RUN_METADATA}\" metadata \"{k}\": {e}"))
-        };
-        Ok(Self {
-            dt_ns: get("dt_ns")?
-                .parse()
-                .map_err(|e| format!("\"{RUN_METADATA}\" metadata \"dt_ns\": {e}"))?,
-            open_loop: get("open_loop")? == "true",
-            rendered: get("rendered")? == "true",
-            scenario_path: PathBuf::from(get("scenario_path")?),
-            scenario_text: get("scenario")?.clone(),
-            seed: get("seed")?
-                .parse()
-                .map_err(|e| format!("\"{RUN_METADATA}\" metadata \"seed\": {e}"))?,
-            duration_secs: number("duration_secs")?,
-            robot_files: m
-                .iter()
-                .filter_map(|(k, v)| Some((k.strip_prefix("robot_file/")?.to_string(), v.clone())))
-                .collect(),
-        })
-    }
+/// The run a recording describes, from its `hetsim.run` metadata record.
+fn run_description(m: Option<&BTreeMap<String, String>>) -> Result<RunDescription, String> {
+    let m = m.ok_or_else(|| format!("no \"{RUN_METADATA}\" metadata record"))?;
+    let get = |k: &str| {
+        m.get(k)
+            .ok_or_else(|| format!("the \"{RUN_METADATA}\" metadata has no \"{k}\""))
+    };
+    let number = |k: &str| -> Result<f64, String> {
+        get(k)?
+            .parse::<f64>()
+            .map_err(|e| format!("\"{RUN_METADATA}\" metadata \"{k}\": {e}"))
+    };
+    Ok(RunDescription {
+        dt_ns: get("dt_ns")?
+            .parse()
+            .map_err(|e| format!("\"{RUN_METADATA}\" metadata \"dt_ns\": {e}"))?,
+        open_loop: get("open_loop")? == "true",
+        rendered: get("rendered")? == "true",
+        scenario_path: PathBuf::from(get("scenario_path")?),
+        scenario_text: get("scenario")?.clone(),
+        seed: get("seed")?
+            .parse()
+            .map_err(|e| format!("\"{RUN_METADATA}\" metadata \"seed\": {e}"))?,
+        duration_secs: number("duration_secs")?,
+        robot_files: m
+            .iter()
+            .filter_map(|(k, v)| Some((k.strip_prefix("robot_file/")?.to_string(), v.clone())))
+            .collect(),
+    })
 }

@@ -27,7 +27,9 @@
 //!
 //! The file is written under a temporary name and renamed when finished.
 
+use hetsim_engine::{RecordedOutcome, RunRecorder, SinkError};
 use hetsim_msgs::{Command, Pose, SensorMsg};
+use hetsim_scene::Scenario;
 use std::collections::{BTreeMap, BTreeSet};
 use std::io::BufWriter;
 use std::path::{Path, PathBuf};
@@ -36,7 +38,7 @@ mod json;
 mod meta;
 pub(crate) mod ros2;
 
-pub use meta::{RecordedOutcome, OUTCOME_METADATA, RUN_METADATA};
+pub use meta::{OUTCOME_METADATA, RUN_METADATA};
 
 /// Latitude and longitude (degrees) and altitude (metres) of the world origin: LAAS-CNRS,
 /// Toulouse. Any origin would do; this one is documented so positions can be reproduced.
@@ -593,5 +595,30 @@ impl Recorder {
         std::fs::rename(&self.tmp, &self.path)
             .map_err(hetsim_core::files::FileError::at(&self.path))?;
         Ok(self.path)
+    }
+}
+
+impl RunRecorder for Recorder {
+    fn describe(&mut self, scenario: &Scenario, rendered: bool) -> Result<(), SinkError> {
+        Ok(Recorder::describe(self, scenario, rendered)?)
+    }
+    fn truth(&mut self, robot: &str, stamp_ns: u64, pose: &Pose) {
+        Recorder::truth(self, robot, stamp_ns, pose);
+    }
+    fn command(&mut self, robot: &str, stamp_ns: u64, cmd: &Command) {
+        Recorder::command(self, robot, stamp_ns, cmd);
+    }
+    fn sensor(
+        &mut self,
+        robot: &str,
+        topic: &str,
+        mount: Option<&Pose>,
+        msg: &SensorMsg,
+        received_ns: u64,
+    ) {
+        Recorder::sensor(self, robot, topic, mount, msg, received_ns);
+    }
+    fn outcome(&mut self, ticks: u64, robots: &[RecordedOutcome]) -> Result<(), SinkError> {
+        Ok(Recorder::outcome(self, ticks, robots)?)
     }
 }

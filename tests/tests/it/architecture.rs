@@ -3,6 +3,8 @@
 //! * robot software (`robots/*`) never depends on the simulator (`sim/*`);
 //! * the engine depends on no robot crate but `hetsim-msgs`, and its sources name no robot
 //!   model;
+//! * the engine is the loop and the radio: its modules are the loop's, and it depends on no
+//!   file-format crate (recordings and datasets are `hetsim-io`'s);
 //! * `hetsim-msgs` depends on nothing of ours;
 //! * each heavy dependency lives in one crate (rapier in physics, wgpu in render, clap and
 //!   indicatif and anyhow in the binary);
@@ -131,6 +133,45 @@ fn the_engine_names_no_robot_model() {
             );
         }
     }
+}
+
+/// The engine's top-level modules: the loop's stages and state (`run`, `stages`), its
+/// replay (`replay`), the radio (`comms`), the cameras rendered in the loop (`cameras`), what
+/// a run returns (`output`) and the traits its sinks implement (`sinks`).
+const ENGINE_MODULES: [&str; 7] = [
+    "cameras", "comms", "output", "replay", "run", "sinks", "stages",
+];
+
+#[test]
+fn the_engine_is_the_loop_and_the_radio() {
+    let src = repo().join("sim/engine/src");
+    let modules: BTreeSet<String> = sources(&src)
+        .iter()
+        .map(|f| top_module(&src, f))
+        .filter(|m| m != "lib")
+        .collect();
+    assert_eq!(
+        modules,
+        ENGINE_MODULES.iter().map(|m| m.to_string()).collect(),
+        "sim/engine/src holds other modules than the loop's"
+    );
+    let all = packages();
+    let (_, deps) = &all["hetsim-engine"];
+    for format in [
+        "mcap",
+        "zstd",
+        "crc32fast",
+        "cdr",
+        "cdr-encoding",
+        "byteorder",
+        "image",
+    ] {
+        assert!(
+            !deps.iter().any(|d| d == format),
+            "hetsim-engine depends on {format}: file formats are hetsim-io's"
+        );
+    }
+    assert!(all["hetsim-io"].1.iter().any(|d| d == "hetsim-engine"));
 }
 
 #[test]
@@ -295,8 +336,14 @@ fn architecture_md_lists_the_dependencies_cargo_metadata_gives() {
     let path = repo().join("ARCHITECTURE.md");
     let text = std::fs::read_to_string(&path).unwrap();
     let (begin, end) = ("<!-- deps:begin -->\n", "<!-- deps:end -->");
-    let from = text.find(begin).expect("ARCHITECTURE.md has a deps:begin marker") + begin.len();
-    let to = from + text[from..].find(end).expect("and a deps:end marker after it");
+    let from = text
+        .find(begin)
+        .expect("ARCHITECTURE.md has a deps:begin marker")
+        + begin.len();
+    let to = from
+        + text[from..]
+            .find(end)
+            .expect("and a deps:end marker after it");
     let expected = dependency_block(&all);
     assert!(
         text[from..to] == expected,

@@ -7,7 +7,12 @@ use hetsim_tests::{hetsim, hetsim_without, printed_digest};
 fn error_lines(out: &std::process::Output) -> Vec<String> {
     [&out.stdout, &out.stderr]
         .iter()
-        .flat_map(|b| String::from_utf8_lossy(b).lines().map(str::to_string).collect::<Vec<_>>())
+        .flat_map(|b| {
+            String::from_utf8_lossy(b)
+                .lines()
+                .map(str::to_string)
+                .collect::<Vec<_>>()
+        })
         .filter(|l| l.to_lowercase().contains("error:"))
         .collect()
 }
@@ -32,7 +37,11 @@ fn rendered_runs_deliver_images_at_their_rates_and_repeat_bit_for_bit() {
             ],
             removed,
         );
-        assert_eq!(error_lines(&o), Vec::<String>::new(), "run {k} printed errors");
+        assert_eq!(
+            error_lines(&o),
+            Vec::<String>::new(),
+            "run {k} printed errors"
+        );
         digests.push(printed_digest(&o));
         let metrics: serde_json::Value =
             serde_json::from_slice(&std::fs::read(out.join("metrics.json")).unwrap()).unwrap();

@@ -9,8 +9,8 @@
 #![allow(dead_code)]
 
 use byteorder::LittleEndian;
-use hetsim_engine::record::{RecordEncoding, Recorder};
 use hetsim_engine::RunOptions;
+use hetsim_io::record::{RecordEncoding, Recorder};
 use hetsim_scene::{load_scenario, load_scenario_text, LoadOptions, Scenario};
 use hetsim_tests::repo;
 use serde::Deserialize;

@@ -3,7 +3,7 @@
 //! instead of being caught by a CRC), then bytes flipped at random, 1,000 times: each replay
 //! ends with its results or with an error, never a panic.
 
-use hetsim_engine::replay::McapRecording;
+use hetsim_io::McapRecording;
 use hetsim_scene::{load_scenario_text, LoadOptions};
 use rand::{RngExt, SeedableRng};
 

@@ -1,8 +1,8 @@
 //! Non-visual sensors against ground truth and their configured noise; the MCAP recording.
 
 use hetsim_core::Streams;
-use hetsim_engine::record::Recorder;
 use hetsim_engine::RunOptions;
+use hetsim_io::Recorder;
 use hetsim_msgs::{yaw_of, SensorMsg};
 use hetsim_physics::Physics;
 use hetsim_scene::{load_scenario_text, LoadOptions, Scenario};
@@ -385,7 +385,7 @@ fn a_json_recording_reads_back_with_the_expected_topics_and_counts() {
     .unwrap();
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("lab.mcap");
-    let mut rec = Recorder::create(&path, hetsim_engine::record::RecordEncoding::Json).unwrap();
+    let mut rec = Recorder::create(&path, hetsim_io::RecordEncoding::Json).unwrap();
     let result = hetsim_tests::run_scenario(
         &s,
         RunOptions {

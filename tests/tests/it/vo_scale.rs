@@ -8,8 +8,8 @@
 //! texture near the rover, or texture that swims between the two eyes) shows as a median
 //! ratio away from 1.
 
-use hetsim_engine::frames::FrameDump;
 use hetsim_engine::RunOptions;
+use hetsim_io::FrameDump;
 use hetsim_msgs::Pose;
 use hetsim_scene::{load_scenario, LoadOptions, Scenario};
 use hetsim_tests::{repo, run_scenario};

@@ -2,7 +2,7 @@
 //! `body.yaml`, and the ground truth's 17-column CSV.
 
 use super::ImuSpec;
-use crate::cameras::Shot;
+use hetsim_engine::cameras::Shot;
 use hetsim_msgs::Pose;
 
 /// `T_BS` as EuRoC writes it: a row-major 4 x 4 block.

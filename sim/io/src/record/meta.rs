@@ -4,6 +4,7 @@
 //! (`hetsim.outcome`: distance driven and collisions per robot, written last).
 
 use super::{RecordError, Recorder};
+use hetsim_engine::RecordedOutcome;
 use hetsim_scene::Scenario;
 use std::collections::BTreeMap;
 
@@ -11,17 +12,6 @@ use std::collections::BTreeMap;
 pub const RUN_METADATA: &str = "hetsim.run";
 /// Name of the metadata record with the physics' outcome per robot.
 pub const OUTCOME_METADATA: &str = "hetsim.outcome";
-
-/// What the physics measured of one robot, kept in the recording (replay has no physics).
-#[derive(Clone, Debug, PartialEq)]
-pub struct RecordedOutcome {
-    /// The robot.
-    pub name: String,
-    /// Distance travelled in the xy plane, metres.
-    pub distance_m: f64,
-    /// Collisions (contact episodes).
-    pub collisions: u32,
-}
 
 impl Recorder {
     /// Writes the run's description: scenario file text and path, every robot file's text
