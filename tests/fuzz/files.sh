@@ -9,4 +9,4 @@ cd "$(dirname "$0")/../.."
 export XDG_RUNTIME_DIR="${XDG_RUNTIME_DIR:-/tmp}"
 ulimit -v 12000000
 HETSIM_FUZZ_CASES="${1:-100000}" HETSIM_FUZZ_SEED="${2:-1}" \
-    cargo test --release -p hetsim-tests --test it -- fuzz_files:: --nocapture
+    cargo test --release --workspace --test it -- fuzz_files:: --nocapture

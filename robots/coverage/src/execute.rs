@@ -22,14 +22,14 @@
 //!   stands in the view steps out of it to the nearest vertex outside it while the grabbing
 //!   child waits; one whose view holds the parent or a child itself waiting (or a done
 //!   child with no way out) leaves the vertex and walks on. (Until 2026-11 a child done
-//!   with its walk stayed where it was and the vertex was left; measured effect: README,
+//!   with its walk stayed where it was and the vertex was left; measured effect: docs/coverage-planning.md,
 //!   "Mapping with many children".) A stage runs in rounds: a round ends as soon as a
 //!   child is idle (its walk done, or none given) while another still walks, and what is
 //!   still to image gets new roadmaps from where the children stand, so that the idle child
 //!   takes a share of it (before 2026-11-28 a round ran until every walk was done: on three
 //!   20 % maps at r_los 8 m with 8 children, 44 % of the children's round timesteps were
 //!   spent done with their walks, and mapping rose beyond 4 children; measured effect:
-//!   README, "Mapping with many children"). Rounds go on while each images anything; the
+//!   docs/coverage-planning.md, "Mapping with many children"). Rounds go on while each images anything; the
 //!   rest is mopped up one vertex at a time (the nearest child goes there, robots in its
 //!   view step out of it, it grabs). Under [`ViewRule::StartPoints`] (a relaxation, for
 //!   comparison with the paper) only the stages' starting points are kept out of each
@@ -81,8 +81,8 @@ enum Following {
     FewInH,
     /// H holds at least N vertices (those off the parent's path where there are N of them),
     /// but the children cannot all get to them through LOS(v_p^t), where the parent can
-    /// track them; ours, since the paper does not say what happens then (README,
-    /// "Transitions").
+    /// track them; ours, since the paper does not say what happens then (docs/coverage-planning.md,
+    /// "Transitions and following behaviours").
     HOutOfReach,
 }
 

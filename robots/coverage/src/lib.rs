@@ -15,7 +15,7 @@
 //! [`ChildStack`] obeys, grabs the images and sends them to the parent.
 //!
 //! Every decision the paper leaves open is stated in the module that makes it and listed in
-//! the repository README ("Coverage planning decisions").
+//! docs/coverage-planning.md ("Coverage planning decisions").
 
 pub mod execute;
 pub mod localize;
@@ -93,7 +93,7 @@ pub enum ViewRule {
 }
 
 /// Which reading of the points Section IV leaves open the planner takes. `Ours` is the
-/// reading decided and shipped (the README's "Coverage planning decisions"); each other one
+/// reading decided and shipped (docs/coverage-planning.md, "Coverage planning decisions"); each other one
 /// changes one decision, to measure its effect on Tables I-II (`hetsim report coverage`,
 /// `scenarios/sweeps/readings-*.toml`). For grid planning only: a scenario whose parent runs
 /// the mission is refused any but `Ours`.

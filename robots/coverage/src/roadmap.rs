@@ -11,7 +11,7 @@
 //!   spread puts the second goal far from the first, often across the stage from its start,
 //!   and paths that swap sides cross, putting the children in each other's way and views.
 //!   Pairing in order removes such crossings, though paths can still cross (a start far
-//!   behind another, obstacles). Measured effect: README, "Mapping with many children".
+//!   behind another, obstacles). Measured effect: docs/coverage-planning.md, "Mapping with many children".
 //! * **Paths** are shortest 4-connected paths from start to goal through the parent's line
 //!   of sight LOS(v_p) (where the parent can track a child), never through `v_p`; through
 //!   any free vertex only if LOS(v_p) does not connect them.
@@ -28,7 +28,7 @@
 //!   and back from the nearest graph vertex, through LOS(v_p); one no detour reaches is
 //!   `unreachable`. (Before 2026-11-27 every graph that could hill did so once per turn,
 //!   whatever its length, and a graph branched out only when no graph could hill; in
-//!   commit d43f3dd the shortest graph that could hill did. Measured effects: README,
+//!   commit d43f3dd the shortest graph that could hill did. Measured effects: docs/coverage-planning.md,
 //!   "Mapping with many children".)
 //! * Children not given a start point (fewer starts than children) stay where they are.
 //! * A child's walk begins where it stands, goes to its start point, then follows its graph.

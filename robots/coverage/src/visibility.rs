@@ -1,7 +1,7 @@
 //! Line of sight on the grid, the robots' view cones, and the sets LOS(v) and LOS_free(v)
 //! (Eqs. 1-2 of seed 002).
 //!
-//! Decisions (see also the README):
+//! Decisions (see also docs/coverage-planning.md):
 //! * **Symmetric LOS.** Two vertices see each other when the straight segment between their
 //!   cell centres touches no occupied cell. The cells are found exactly, in integer
 //!   arithmetic, and a segment passing exactly through a cell corner counts as touching all

@@ -44,7 +44,7 @@
 //! Dala in the village) is the team's frame, as in the seed; another robot's estimates move
 //! into it once an event links the two ([`crate::global`]). GPS fixes are not events: they
 //! are world positions, and no robot knows where its frame lies in the world (that would take
-//! a world-frame node in the graph; see the README's known gaps). Every frame is kept as
+//! a world-frame node in the graph; see docs/known-gaps.md). Every frame is kept as
 //! (sub-map, pose in it, its covariance), and written through the graph's optimized origins
 //! (`slam/<robot>.tum`) and through the origins compounded without events
 //! (`slam-open/<robot>.tum`, the open-loop estimate); the chained VO alone is

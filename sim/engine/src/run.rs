@@ -63,10 +63,10 @@ pub enum RunError {
     Render(#[from] RenderError),
     /// Frames could not be written.
     #[error("writing frames: {0}")]
-    Frames(SinkError),
+    Frames(#[source] SinkError),
     /// The recording could not be written.
     #[error("recording: {0}")]
-    Record(SinkError),
+    Record(#[source] SinkError),
     /// A robot's software refused a message it was fed.
     #[error("robot {robot} refused a message: {error}")]
     Input {
@@ -116,7 +116,7 @@ fn run_on_worker(
     run.finish(ticks)
 }
 
-/// Everything a live run holds between ticks. One tick is its stages in order (DESIGN.md):
+/// Everything a live run holds between ticks. One tick is its stages in order:
 /// [`LiveRun::step_stacks`], [`LiveRun::actuate`], the physics' step, [`LiveRun::sense`],
 /// [`LiveRun::capture`], [`LiveRun::deliver_radio`].
 struct LiveRun<'s, 'o> {

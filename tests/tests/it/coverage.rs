@@ -311,7 +311,7 @@ fn the_scenario_readings_are_the_planners() {
 
 /// H from LOS_free (`h_from_los_free`) is a subset of Eq. 8's H, since LOS_free(v) is a
 /// subset of LOS(v): a transition with fewer than N vertices in Eq. 8's H has fewer in it
-/// too, so on the open map (where no child is ever unable to get to H, README) it makes at
+/// too, so on the open map (where no child is ever unable to get to H, docs/coverage-planning.md) it makes at
 /// least as many following behaviours for every N. The tour does not depend on N or on H.
 /// With 8 children, strictly more (a check that the reading is wired in): a transition east
 /// loses from H the vertices in the 80 deg wedge west of v_p^(t+1), up to 10 of them (the

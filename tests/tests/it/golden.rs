@@ -443,7 +443,7 @@ fn lab_outputs(out: &Path) {
     // It drove by encoders the parent calibrated from its tracks, on enough hops. A
     // c't-Bot's wheels slip 2 % and each encoder's scale has a 2 % sigma (1.4 % for their
     // mean), so it travels 0.94-1.02 m per metre counted (3 sigma); the calibration runs
-    // about 0.5 % low (README). Against the same hops on the truth: the tracker's accuracy
+    // about 0.5 % low (docs/cooperative-mapping.md). Against the same hops on the truth: the tracker's accuracy
     // as asserted above (mean under 0.04 m) puts a 0.5 m hop's two ends within about
     // 0.04 x sqrt(2) = 0.057 m, 11 %, of each other; the median of 10 or more such hops is
     // within about 11 % x 1.25 / sqrt(10) = 4.3 %, plus the tracker's range bias (0.2 %
@@ -515,7 +515,7 @@ fn lab_outputs(out: &Path) {
 /// 0.08 m), none given to the wrong child (half the 0.5 m vertex spacing bounds every fix).
 /// Collisions are not asserted: 0 on both backends since the team moves together, but a
 /// child dead-reckoned beyond r_los can still graze furniture (on GL it did before, one
-/// episode; README, "Cooperative mapping in lockstep").
+/// episode; docs/cooperative-mapping.md).
 #[test]
 fn golden_indoor_team_mission() {
     check_backends_and(
@@ -543,7 +543,7 @@ fn golden_indoor_team_mission() {
             assert_tracking(&t["tracking"], 10_000);
             assert_parent_localization(&t["parent_localization"]);
             // The first child that can move after the mapping (which one depends on where
-            // the mapping left them: child1 in the README's run of 2026-11-29) drives the
+            // the mapping left them: child1 in the run docs/cooperative-mapping.md describes) drives the
             // 20 moves and localizes within one grid spacing.
             assert!(t["localized_min"].is_f64(), "{t}");
             let runs = t["localization"].as_array().unwrap();

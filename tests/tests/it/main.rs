@@ -3,7 +3,7 @@
 //! (`tests/tests/memory.rs`) is a binary of its own: it counts the heap with a global
 //! allocator, which would count every other test's allocations too.
 //!
-//! Run one subject with a filter on its module: `cargo test --release -p hetsim-tests --test it
+//! Run one subject with a filter on its module: `cargo test --release --workspace --test it
 //! -- village::`.
 
 mod architecture;

@@ -12,7 +12,7 @@
 //!   then the k-th child (nearest the parent first) steps towards the vertex the parent held
 //!   k timesteps before. When the parent has arrived, the children outside its line of
 //!   sight spread into it together, as many as it has free vertices for, the nearest child
-//!   to the deepest of the vertices chosen (they arrive in file: README, "Coverage planning
+//!   to the deepest of the vertices chosen (they arrive in file: docs/coverage-planning.md, "Coverage planning
 //!   decisions", for the measured effect).
 //! * Ways are planned around the robots that stay where they are (the parent above all).
 //!

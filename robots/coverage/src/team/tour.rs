@@ -22,7 +22,7 @@
 //! and drove its next moves 0.2-0.3 m off its path, against the rack (42 contact starts;
 //! WGOH then stayed 0.29-0.47 m off to the end). So corrected: 0 contacts, WGOH 0.17-0.28 m
 //! off from the ninth image on; the other nine seeds ran as before. Measured over 20 moves,
-//! in the lab and in the small room of `tests/team.rs` (3 x 2 m, two robots standing), before
+//! in the lab and in the small room of `tests/tests/it/team.rs` (3 x 2 m, two robots standing), before
 //! that: so driven, 0 and 0 contacts; driving each move from the estimate, 2 and 10; driving
 //! the planned moves between vertex centres with no position kept, 0 and 36. The appearance
 //! estimate is often 0.1-0.2 m off along the direction of mapping (images facing east change
