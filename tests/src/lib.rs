@@ -119,13 +119,15 @@ pub fn printed_digest(out: &Output) -> String {
 }
 
 /// The 512 x 384 pinhole (60° horizontal field of view) the rendered vision tests use.
-pub const TEST_INTRINSICS: hetsim_render::Intrinsics = hetsim_render::Intrinsics {
+pub const TEST_INTRINSICS: hetsim_msgs::CameraGeometry = hetsim_msgs::CameraGeometry {
     width: 512,
     height: 384,
-    alpha_u: 443.4,
-    alpha_v: 443.4,
-    u0: 255.5,
-    v0: 191.5,
+    k: hetsim_msgs::Pinhole {
+        alpha_u: 443.4,
+        alpha_v: 443.4,
+        u0: 255.5,
+        v0: 191.5,
+    },
 };
 
 /// Every file of a sweep's folder by relative path, but what differs by design between two

@@ -14,12 +14,14 @@
 //! * angles in radians unless a name says `_deg`; yaw is measured counter-clockwise from east;
 //! * times are integer nanoseconds of sim time (`stamp_ns`).
 
+mod camera;
 mod check;
 mod command;
 mod geometry;
 mod message;
 mod stack;
 
+pub use camera::{mount_to_optical, CameraGeometry, Pinhole};
 pub use check::{check_message, sensor_of, InboxGuard, InputError};
 pub use command::Command;
 pub use geometry::{pose_from_xyz_rpy, wrap_angle, yaw_of, Pose};

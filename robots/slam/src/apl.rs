@@ -235,14 +235,14 @@ pub fn point_at(a: &Apl, t: f64) -> Vector3<f64> {
 mod tests {
     use super::*;
     use crate::quat::tests::{assert_close, numeric, random_quat};
-    use hetsim_vision::Camera;
+    use hetsim_msgs::Pinhole;
     use nalgebra::{DMatrix, DVector, Isometry3, Translation3, UnitQuaternion};
     use rand::{RngExt, SeedableRng};
 
     fn sensor() -> Sensor {
         let r = Matrix3::new(0.0, 0.0, 1.0, -1.0, 0.0, 0.0, 0.0, -1.0, 0.0);
         Sensor::new(
-            Camera {
+            Pinhole {
                 alpha_u: 500.0,
                 alpha_v: 480.0,
                 u0: 320.0,

@@ -12,7 +12,7 @@
 //! to `u = αu h_x / h_z + u0`, `v = αv h_y / h_z + v0`.
 
 use crate::quat::{d_rot_dq, d_rot_t_dq, rot};
-use hetsim_vision::Camera;
+use hetsim_msgs::Pinhole;
 use nalgebra::{Isometry3, Matrix2x3, Matrix3, Matrix3x4, SMatrix, Vector2, Vector3, Vector4};
 
 /// An inverse-depth point.
@@ -22,7 +22,7 @@ pub type Idp = SMatrix<f64, 6, 1>;
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Sensor {
     /// Pinhole intrinsics.
-    pub camera: Camera,
+    pub camera: Pinhole,
     /// Translation of the optical frame in the body frame.
     pub t_bc: Vector3<f64>,
     /// Rotation of the optical frame in the body frame.
@@ -31,7 +31,7 @@ pub struct Sensor {
 
 impl Sensor {
     /// A sensor at `body_from_camera` (optical frame: x right, y down, z forward).
-    pub fn new(camera: Camera, body_from_camera: &Isometry3<f64>) -> Self {
+    pub fn new(camera: Pinhole, body_from_camera: &Isometry3<f64>) -> Self {
         Self {
             camera,
             t_bc: body_from_camera.translation.vector,
@@ -201,7 +201,7 @@ mod tests {
                 )),
         );
         Sensor::new(
-            Camera {
+            Pinhole {
                 alpha_u: 500.0,
                 alpha_v: 505.0,
                 u0: 320.0,

@@ -1,6 +1,4 @@
-//! Grey images and the pinhole model used by the vision code.
-
-use nalgebra::Vector3;
+//! Grey images.
 
 /// A grey image, row-major, intensities 0-255 as `f32`.
 #[derive(Clone, Debug, PartialEq)]
@@ -91,52 +89,11 @@ impl Gray {
     }
 }
 
-/// A pinhole camera: `u = αu x/z + u0`, `v = αv y/z + v0`.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Camera {
-    /// Focal length along u, pixels.
-    pub alpha_u: f64,
-    /// Focal length along v, pixels.
-    pub alpha_v: f64,
-    /// Principal point u0.
-    pub u0: f64,
-    /// Principal point v0.
-    pub v0: f64,
-}
-
-impl Camera {
-    /// Pixel of a point in the optical frame (z > 0).
-    pub fn project(&self, p: &Vector3<f64>) -> Option<[f64; 2]> {
-        (p.z > 1e-9).then(|| {
-            [
-                self.alpha_u * p.x / p.z + self.u0,
-                self.alpha_v * p.y / p.z + self.v0,
-            ]
-        })
-    }
-
-    /// Jacobian of [`Camera::project`] with respect to the point, 2 x 3, row-major.
-    pub fn project_jacobian(&self, p: &Vector3<f64>) -> [[f64; 3]; 2] {
-        let iz = 1.0 / p.z;
-        [
-            [self.alpha_u * iz, 0.0, -self.alpha_u * p.x * iz * iz],
-            [0.0, self.alpha_v * iz, -self.alpha_v * p.y * iz * iz],
-        ]
-    }
-
-    /// The point at depth `z` (along the optical axis) seen at pixel `(u, v)`.
-    pub fn back_project(&self, u: f64, v: f64, z: f64) -> Vector3<f64> {
-        Vector3::new(
-            (u - self.u0) / self.alpha_u * z,
-            (v - self.v0) / self.alpha_v * z,
-            z,
-        )
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+    use hetsim_msgs::Pinhole;
+    use nalgebra::Vector3;
     use rand::{RngExt, SeedableRng};
 
     #[test]
@@ -165,7 +122,7 @@ mod tests {
 
     #[test]
     fn project_back_project_round_trip_and_jacobian_match_finite_differences() {
-        let cam = Camera {
+        let cam = Pinhole {
             alpha_u: 700.0,
             alpha_v: 690.0,
             u0: 511.5,
@@ -208,7 +165,7 @@ mod tests {
     #[test]
     fn world_points_seen_from_random_poses_round_trip() {
         use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion};
-        let cam = Camera {
+        let cam = Pinhole {
             alpha_u: 443.4,
             alpha_v: 443.4,
             u0: 255.5,

@@ -30,4 +30,4 @@ pub mod segments;
 pub mod stereo;
 pub mod vo;
 
-pub use image::{Camera, Gray};
+pub use image::Gray;

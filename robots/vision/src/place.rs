@@ -28,7 +28,8 @@
 
 use crate::stereo::StereoPoint;
 use crate::vo::{estimate, Correspondence};
-use crate::{Camera, Gray};
+use crate::Gray;
+use hetsim_msgs::Pinhole;
 use hetsim_msgs::Pose;
 use nalgebra::{Matrix2, Matrix2x3, Matrix3, Matrix3x6, Matrix6, Point3, Vector3};
 use std::sync::OnceLock;
@@ -54,7 +55,7 @@ pub struct KeyPoint {
 #[derive(Clone, Debug, PartialEq)]
 pub struct KeyFrame {
     /// The left camera's intrinsics.
-    pub camera: Camera,
+    pub camera: Pinhole,
     /// The bench's baseline, metres.
     pub baseline_m: f64,
     /// Its points.
@@ -163,7 +164,7 @@ pub fn hamming(a: &[u64; 4], b: &[u64; 4]) -> u32 {
 impl KeyFrame {
     /// The key frame of a left image and its stereo points (those near the border, without a
     /// descriptor, are left out).
-    pub fn new(left: &Gray, camera: Camera, baseline_m: f64, stereo: &[StereoPoint]) -> Self {
+    pub fn new(left: &Gray, camera: Pinhole, baseline_m: f64, stereo: &[StereoPoint]) -> Self {
         let s = smooth(left);
         let points = stereo
             .iter()
@@ -221,7 +222,7 @@ impl KeyFrame {
         if b.len() != 44 + 52 * n {
             return None;
         }
-        let camera = Camera {
+        let camera = Pinhole {
             alpha_u: f64_at(0)?,
             alpha_v: f64_at(8)?,
             u0: f64_at(16)?,

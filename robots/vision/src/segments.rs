@@ -18,7 +18,8 @@
 //! side is on the right in image coordinates (x right, y down); equivalently the gradient
 //! points to the left of `b - a`.
 
-use crate::{Camera, Gray};
+use crate::Gray;
+use hetsim_msgs::Pinhole;
 use nalgebra::{Isometry3, Point3, Vector2, Vector3};
 use std::f64::consts::PI;
 

@@ -6,7 +6,8 @@
 
 use crate::harris::Corner;
 use crate::matching::{row_scores, Patch, HALF};
-use crate::{Camera, Gray};
+use crate::Gray;
+use hetsim_msgs::Pinhole;
 use nalgebra::Vector3;
 
 /// A rectified stereo bench: the left camera's intrinsics (shared by the right camera) and
@@ -14,7 +15,7 @@ use nalgebra::Vector3;
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Bench {
     /// Intrinsics of both cameras.
-    pub camera: Camera,
+    pub camera: Pinhole,
     /// Distance between the optical centres, metres.
     pub baseline_m: f64,
 }

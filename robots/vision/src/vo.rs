@@ -7,7 +7,7 @@
 //! its inliers. The covariance of the motion is `σ² (JᵀJ)⁻¹`, σ² the residual variance,
 //! expressed on a left perturbation `exp(ξ) T` with `ξ = (ρ, φ)` (translation, rotation).
 
-use crate::Camera;
+use hetsim_msgs::Pinhole;
 use hetsim_msgs::Pose;
 use nalgebra::{
     Isometry3, Matrix3, Matrix6, Rotation3, Translation3, UnitQuaternion, Vector3, Vector6,
@@ -66,7 +66,7 @@ pub(crate) fn skew(v: &Vector3<f64>) -> Matrix3<f64> {
     Matrix3::new(0.0, -v.z, v.y, v.z, 0.0, -v.x, -v.y, v.x, 0.0)
 }
 
-fn residual(cam: &Camera, t: &Pose, c: &Correspondence) -> Option<[f64; 2]> {
+fn residual(cam: &Pinhole, t: &Pose, c: &Correspondence) -> Option<[f64; 2]> {
     let p = t * nalgebra::Point3::from(c.previous);
     cam.project(&p.coords)
         .map(|[u, v]| [u - c.pixel[0], v - c.pixel[1]])
@@ -74,7 +74,7 @@ fn residual(cam: &Camera, t: &Pose, c: &Correspondence) -> Option<[f64; 2]> {
 
 /// Estimates the motion; `None` with fewer than `min_inliers` inliers.
 pub fn estimate(
-    cam: &Camera,
+    cam: &Pinhole,
     data: &[Correspondence],
     iterations: usize,
     inlier_px: f64,
@@ -386,7 +386,7 @@ mod tests {
 
     #[test]
     fn recovers_a_known_motion_despite_outliers_with_a_sensible_covariance() {
-        let cam = Camera {
+        let cam = Pinhole {
             alpha_u: 600.0,
             alpha_v: 600.0,
             u0: 320.0,

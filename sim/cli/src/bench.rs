@@ -3,7 +3,8 @@
 
 use anyhow::{Context, Result};
 use hetsim_engine::RunOptions;
-use hetsim_render::{CameraView, Intrinsics, RenderOptions, Renderer};
+use hetsim_msgs::CameraGeometry;
+use hetsim_render::{CameraView, RenderOptions, Renderer};
 use hetsim_scene::{load_scenario, LoadOptions, Scenario};
 use serde_json::{json, Map, Value};
 use std::path::{Path, PathBuf};
@@ -256,9 +257,9 @@ pub fn render(scenarios: &[PathBuf], options: &RenderOptions) -> Result<Figures>
         let ground = loaded.world.ground_z(r.x, r.y);
         let mut rates = Vec::new();
         for (k, pair) in [
-            (Intrinsics::from_hfov(1024, 768, 60.0), false),
-            (Intrinsics::from_hfov(1024, 768, 60.0), true),
-            (Intrinsics::from_hfov(120, 88, 80.0), false),
+            (CameraGeometry::from_hfov(1024, 768, 60.0), false),
+            (CameraGeometry::from_hfov(1024, 768, 60.0), true),
+            (CameraGeometry::from_hfov(120, 88, 80.0), false),
         ] {
             let frames = if k.width > 200 { 20 } else { 200 };
             let views = |i: usize| {
@@ -304,7 +305,7 @@ const VISION_ROUNDS: usize = 7;
 /// start: the median over [`VISION_ROUNDS`] rounds of the sequence, with the least and
 /// greatest round.
 pub fn vision(scenario: &Path) -> Result<Figures> {
-    use hetsim_vision::{harris, segments, stereo, vo::StereoVo, Camera, Gray};
+    use hetsim_vision::{harris, segments, stereo, vo::StereoVo, Gray};
     let loaded = load_scenario(scenario, &LoadOptions::default())?;
     let (robot, stereo) = loaded
         .robots
@@ -320,12 +321,7 @@ pub fn vision(scenario: &Path) -> Result<Figures> {
     let (k, baseline, mount) = (stereo.intrinsics, stereo.baseline_m, stereo.body_from_mount);
     let mut renderer = Renderer::new(&loaded.world, &RenderOptions::default())?;
     let bench = stereo::Bench {
-        camera: Camera {
-            alpha_u: k.alpha_u,
-            alpha_v: k.alpha_v,
-            u0: k.u0,
-            v0: k.v0,
-        },
+        camera: k.k,
         baseline_m: baseline,
     };
     let (w, h) = (k.width as usize, k.height as usize);
@@ -472,7 +468,7 @@ pub fn slam() -> Figures {
     use nalgebra::{Isometry3, Matrix3, Translation3, UnitQuaternion};
     let r = Matrix3::new(0.0, 0.0, 1.0, -1.0, 0.0, 0.0, 0.0, -1.0, 0.0);
     let sensor = Sensor::new(
-        hetsim_vision::Camera {
+        hetsim_msgs::Pinhole {
             alpha_u: 887.0,
             alpha_v: 887.0,
             u0: 511.5,

@@ -100,7 +100,7 @@ pub fn replay(args: &ReplayArgs<'_>) -> Result<hetsim_eval::RunFiles> {
             bench: bench.name,
             width: k.width,
             height: k.height,
-            intrinsics: [k.alpha_u, k.alpha_v, k.u0, k.v0],
+            intrinsics: [k.k.alpha_u, k.k.alpha_v, k.k.u0, k.k.v0],
             baseline_m: bench.baseline_m,
             dt_ns: scenario.clock.dt_ns(),
         };

@@ -13,12 +13,12 @@
 //! * Every camera due on a tick is rendered in one batch; a camera never sees its own robot.
 
 use hetsim_core::{SimClock, SimRng, Streams};
+use hetsim_msgs::{mount_to_optical, CameraGeometry};
 use hetsim_msgs::{pose_from_xyz_rpy, Image, PixelEncoding, Pose};
 use hetsim_physics::Physics;
 use hetsim_render::Frame;
 use hetsim_render::{
-    mount_to_optical, AdapterSummary, CameraView, Intrinsics, RenderError, RenderOptions, Renderer,
-    RobotDraw, RobotPart,
+    AdapterSummary, CameraView, RenderError, RenderOptions, Renderer, RobotDraw, RobotPart,
 };
 use hetsim_scene::{DriveKind, Scenario, Sensor, HAT_SCALE, HAT_THICKNESS_M};
 use nalgebra::Isometry3;
@@ -29,12 +29,12 @@ enum Model {
     /// needs rays outside its undistorted field of view).
     Pinhole {
         distortion: Option<[f64; 2]>,
-        render: Intrinsics,
+        render: CameraGeometry,
     },
     /// The panorama's pixels, computed once: where each reads the rendered cube faces, and
     /// which faces (indices into `CUBE`) those are.
     Omni {
-        face: Intrinsics,
+        face: CameraGeometry,
         taps: optics::Taps,
         faces: Vec<usize>,
     },
@@ -47,7 +47,7 @@ struct Rig {
     /// The camera's name on the robot (as in `Image::sensor`).
     sensor: String,
     period: u64,
-    intrinsics: Intrinsics,
+    intrinsics: CameraGeometry,
     body_from_mount: Pose,
     /// Pixel noise, `None` for a noiseless camera.
     noise: Option<PixelNoise>,
@@ -71,8 +71,8 @@ pub struct Shot {
     pub depth_m: Option<Vec<f32>>,
     /// `world_from_optical` at exposure.
     pub world_from_optical: Pose,
-    /// Intrinsics (for a panorama: its size, with focal lengths 0).
-    pub intrinsics: Intrinsics,
+    /// The image and its pinhole (for a panorama: its size, with focal lengths 0).
+    pub intrinsics: CameraGeometry,
     /// `body_from_optical`.
     pub body_from_optical: Pose,
     /// Radial distortion `[k1, k2]` applied.
@@ -159,7 +159,7 @@ impl Cameras {
                         topic: base,
                         sensor: s.name().to_string(),
                         period,
-                        intrinsics: hetsim_render::intrinsics_of(
+                        intrinsics: hetsim_scene::camera_geometry(
                             *width_px,
                             *height_px,
                             *hfov_deg,
@@ -169,7 +169,7 @@ impl Cameras {
                         noise: pixel_noise(*pixel_noise_sigma),
                         gain: *gain as f32,
                         model: pinhole(
-                            hetsim_render::intrinsics_of(
+                            hetsim_scene::camera_geometry(
                                 *width_px,
                                 *height_px,
                                 *hfov_deg,
@@ -198,7 +198,7 @@ impl Cameras {
                                 topic: format!("{base}/{eye}"),
                                 sensor: format!("{}/{eye}", s.name()),
                                 period,
-                                intrinsics: hetsim_render::intrinsics_of(
+                                intrinsics: hetsim_scene::camera_geometry(
                                     *width_px,
                                     *height_px,
                                     *hfov_deg,
@@ -209,7 +209,7 @@ impl Cameras {
                                 noise: pixel_noise(*pixel_noise_sigma),
                                 gain: *gain as f32,
                                 model: pinhole(
-                                    hetsim_render::intrinsics_of(
+                                    hetsim_scene::camera_geometry(
                                         *width_px,
                                         *height_px,
                                         *hfov_deg,
@@ -234,19 +234,21 @@ impl Cameras {
                             topic: base,
                             sensor: s.name().to_string(),
                             period,
-                            intrinsics: Intrinsics {
+                            intrinsics: CameraGeometry {
                                 width: *width_px,
                                 height: *height_px,
-                                alpha_u: 0.0,
-                                alpha_v: 0.0,
-                                u0: 0.0,
-                                v0: 0.0,
+                                k: hetsim_msgs::Pinhole {
+                                    alpha_u: 0.0,
+                                    alpha_v: 0.0,
+                                    u0: 0.0,
+                                    v0: 0.0,
+                                },
                             },
                             body_from_mount: mount,
                             noise: None,
                             gain: 1.0,
                             model: {
-                                let face = Intrinsics::from_hfov(face_px, face_px, 90.0);
+                                let face = CameraGeometry::from_hfov(face_px, face_px, 90.0);
                                 let lookup = panorama_lookup(
                                     &face,
                                     *width_px,

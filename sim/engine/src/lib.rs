@@ -25,6 +25,8 @@ mod run;
 pub mod sinks;
 mod stages;
 
+/// The renderer's error, which [`RunError`] carries.
+pub use hetsim_render::RenderError;
 pub use output::{tum_line, RobotOutcome, RunOutput};
 pub use replay::{replay, replay_withholding_truth, ReplayError};
 pub use run::{run, RunError, RunOptions};

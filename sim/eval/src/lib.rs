@@ -44,7 +44,7 @@ pub enum EvalError {
     Sweep(#[from] sweep::SweepError),
     /// The renderer could not start.
     #[error(transparent)]
-    Render(#[from] hetsim_render::RenderError),
+    Render(#[from] hetsim_engine::RenderError),
     /// Coverage planning is impossible for this scenario.
     #[error("coverage planning: {0}")]
     Plan(String),

@@ -82,7 +82,7 @@ pub struct MatchingMetrics {
 /// size and intrinsics.
 struct View {
     body_from_camera: Pose,
-    k: hetsim_render::Intrinsics,
+    k: hetsim_msgs::CameraGeometry,
 }
 
 fn view_of(scenario: &Scenario, robot: &str) -> Option<View> {
@@ -91,7 +91,7 @@ fn view_of(scenario: &Scenario, robot: &str) -> Option<View> {
     Some(View {
         body_from_camera: Pose::from_parts(
             b.body_from_mount.translation,
-            b.body_from_mount.rotation * hetsim_render::mount_to_optical(),
+            b.body_from_mount.rotation * hetsim_msgs::mount_to_optical(),
         ),
         k: b.intrinsics,
     })
@@ -178,17 +178,17 @@ pub fn judge(
                     .clamp(-1.0, 1.0)
                     .acos()
                     .to_degrees();
-                let radius = depth * (w / 2.0) / v.k.alpha_u;
+                let radius = depth * (w / 2.0) / v.k.k.alpha_u;
                 let here = cam * Point3::new(0.0, 0.0, p.z.max(0.0));
                 if angle > MAX_VIEW_DEG || (here - point).norm() > LEAVE * radius {
                     left[i] = true;
                 }
                 let central = p.z > 0.0 && {
                     let (u, vv) = (
-                        v.k.alpha_u * p.x / p.z + v.k.u0,
-                        v.k.alpha_v * p.y / p.z + v.k.v0,
+                        v.k.k.alpha_u * p.x / p.z + v.k.k.u0,
+                        v.k.k.alpha_v * p.y / p.z + v.k.k.v0,
                     );
-                    (u - v.k.u0).abs() < w / 4.0 && (vv - v.k.v0).abs() < h / 4.0
+                    (u - v.k.k.u0).abs() < w / 4.0 && (vv - v.k.k.v0).abs() < h / 4.0
                 };
                 any |= left[i] && central && angle <= MAX_VIEW_DEG;
             }

@@ -1,8 +1,8 @@
 //! What evaluation reads of the scenario and its truth: the pose at a stamp, a robot's camera,
 //! the direction of mapping.
 
+use hetsim_msgs::CameraGeometry;
 use hetsim_msgs::Pose;
-use hetsim_render::Intrinsics;
 use hetsim_scene::{Scenario, Sensor};
 
 /// The pose in a ground-truth track nearest a stamp.
@@ -18,7 +18,7 @@ pub fn truth_at(track: &[(u64, Pose)], stamp_ns: u64) -> Pose {
 
 /// A robot's (first) pinhole camera: its mount in the body frame, its intrinsics and its
 /// pixel noise.
-pub fn camera_of(robot: &hetsim_scene::ResolvedRobot) -> Option<(Pose, Intrinsics, f64)> {
+pub fn camera_of(robot: &hetsim_scene::ResolvedRobot) -> Option<(Pose, CameraGeometry, f64)> {
     robot.model.sensors.iter().find_map(|s| match s {
         Sensor::Camera {
             mount,
@@ -30,7 +30,7 @@ pub fn camera_of(robot: &hetsim_scene::ResolvedRobot) -> Option<(Pose, Intrinsic
             ..
         } => Some((
             hetsim_msgs::pose_from_xyz_rpy(mount.xyz_m, mount.rpy_deg.map(f64::to_radians)),
-            hetsim_render::intrinsics_of(*width_px, *height_px, *hfov_deg, intrinsics.as_ref()),
+            hetsim_scene::camera_geometry(*width_px, *height_px, *hfov_deg, intrinsics.as_ref()),
             *pixel_noise_sigma,
         )),
         _ => None,

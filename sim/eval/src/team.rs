@@ -5,9 +5,9 @@ use crate::scene::{camera_of, direction_rad, truth_at};
 use crate::stats::MeanStd;
 use hetsim_coverage::{TeamReport, TEAM_ARTIFACT};
 use hetsim_engine::RunOutput;
+use hetsim_msgs::mount_to_optical;
 use hetsim_msgs::{wrap_angle, yaw_of, Pose};
 use hetsim_physics::Physics;
-use hetsim_render::mount_to_optical;
 use hetsim_scene::Scenario;
 use nalgebra::{Isometry3, Point3};
 use serde::Serialize;
@@ -239,8 +239,8 @@ fn robot_in_view(
                 if p.z <= 0.01 {
                     return false;
                 }
-                let u = k.alpha_u * p.x / p.z + k.u0;
-                let v = k.alpha_v * p.y / p.z + k.v0;
+                let u = k.k.alpha_u * p.x / p.z + k.k.u0;
+                let v = k.k.alpha_v * p.y / p.z + k.k.v0;
                 let inside = u >= -0.5
                     && v >= -0.5
                     && u <= k.width as f64 - 0.5

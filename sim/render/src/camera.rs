@@ -1,106 +1,13 @@
-//! Pinhole intrinsics, camera poses and the projection matrix.
+//! Camera poses and the projection matrix of a [`CameraGeometry`].
 
-use hetsim_msgs::Pose;
-use nalgebra::{Matrix3, Matrix4, Rotation3, UnitQuaternion, Vector3};
-
-/// Pinhole intrinsics in pixels (OpenCV convention).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Intrinsics {
-    /// Image width, pixels.
-    pub width: u32,
-    /// Image height, pixels.
-    pub height: u32,
-    /// Focal length along u, pixels.
-    pub alpha_u: f64,
-    /// Focal length along v, pixels.
-    pub alpha_v: f64,
-    /// Principal point u0, pixels.
-    pub u0: f64,
-    /// Principal point v0, pixels.
-    pub v0: f64,
-}
-
-impl Intrinsics {
-    /// Square pixels, principal point at the image centre, horizontal opening angle `hfov`.
-    pub fn from_hfov(width: u32, height: u32, hfov_deg: f64) -> Self {
-        let alpha = (width as f64 / 2.0) / (hfov_deg.to_radians() / 2.0).tan();
-        Self {
-            width,
-            height,
-            alpha_u: alpha,
-            alpha_v: alpha,
-            u0: (width as f64 - 1.0) / 2.0,
-            v0: (height as f64 - 1.0) / 2.0,
-        }
-    }
-
-    /// Pixel coordinates of a point in the optical frame, if in front of the camera.
-    pub fn project(&self, p: &Vector3<f64>) -> Option<(f64, f64)> {
-        (p.z > 1e-9).then(|| {
-            (
-                self.alpha_u * p.x / p.z + self.u0,
-                self.alpha_v * p.y / p.z + self.v0,
-            )
-        })
-    }
-
-    /// The ray through pixel `(u, v)` in the optical frame, with z = 1.
-    pub fn back_project(&self, u: f64, v: f64) -> Vector3<f64> {
-        Vector3::new(
-            (u - self.u0) / self.alpha_u,
-            (v - self.v0) / self.alpha_v,
-            1.0,
-        )
-    }
-
-    /// `K`.
-    pub fn matrix(&self) -> Matrix3<f64> {
-        Matrix3::new(
-            self.alpha_u,
-            0.0,
-            self.u0,
-            0.0,
-            self.alpha_v,
-            self.v0,
-            0.0,
-            0.0,
-            1.0,
-        )
-    }
-}
-
-/// Pinhole intrinsics of a camera sensor: given, or from resolution and field of view.
-pub fn intrinsics_of(
-    width: u32,
-    height: u32,
-    hfov_deg: Option<f64>,
-    k: Option<&hetsim_scene::Intrinsics>,
-) -> Intrinsics {
-    match k {
-        Some(k) => Intrinsics {
-            width,
-            height,
-            alpha_u: k.alpha_u,
-            alpha_v: k.alpha_v,
-            u0: k.u0,
-            v0: k.v0,
-        },
-        None => Intrinsics::from_hfov(width, height, hfov_deg.unwrap_or(60.0)),
-    }
-}
-
-/// `mount_from_optical`: sensor mounts follow the body convention (x along the optical axis,
-/// y left, z up); the optical frame is x right, y down, z forward.
-pub fn mount_to_optical() -> UnitQuaternion<f64> {
-    let m = Matrix3::new(0.0, 0.0, 1.0, -1.0, 0.0, 0.0, 0.0, -1.0, 0.0);
-    UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(m))
-}
+use hetsim_msgs::{mount_to_optical, CameraGeometry, Pose};
+use nalgebra::Matrix4;
 
 /// A camera to render.
 #[derive(Clone, Debug, PartialEq)]
 pub struct CameraView {
     /// Intrinsics.
-    pub intrinsics: Intrinsics,
+    pub intrinsics: CameraGeometry,
     /// `world_from_optical`.
     pub world_from_optical: Pose,
     /// Near and far clipping distances, metres.
@@ -120,7 +27,7 @@ impl CameraView {
     /// A camera whose sensor mount (x along the optical axis, y left, z up) is at
     /// `world_from_mount`, clipping at `near_far_m`, hiding no robot.
     pub fn from_mount(
-        intrinsics: Intrinsics,
+        intrinsics: CameraGeometry,
         world_from_mount: &Pose,
         near_far_m: [f64; 2],
     ) -> Self {
@@ -145,8 +52,8 @@ impl CameraView {
 
     /// The matrix taking world points to clip space.
     pub fn view_proj(&self) -> Matrix4<f64> {
-        let k = &self.intrinsics;
-        let (w, h) = (k.width as f64, k.height as f64);
+        let (w, h) = (self.intrinsics.width as f64, self.intrinsics.height as f64);
+        let k = &self.intrinsics.k;
         let [n, f] = self.near_far_m;
         #[rustfmt::skip]
         let proj = Matrix4::new(
@@ -162,20 +69,22 @@ impl CameraView {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use nalgebra::{Isometry3, Point3, Translation3};
+    use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 
     #[test]
     fn projection_matrix_lands_points_on_their_pixels() {
-        let k = Intrinsics {
-            width: 120,
-            height: 88,
+        let k = hetsim_msgs::Pinhole {
             alpha_u: 71.5,
             alpha_v: 70.0,
             u0: 60.3,
             v0: 42.8,
         };
         let view = CameraView {
-            intrinsics: k,
+            intrinsics: CameraGeometry {
+                width: 120,
+                height: 88,
+                k,
+            },
             world_from_optical: Isometry3::from_parts(
                 Translation3::new(1.0, 2.0, 3.0),
                 UnitQuaternion::from_euler_angles(0.3, -0.2, 1.1),
@@ -196,7 +105,7 @@ mod tests {
             let (ndc_x, ndc_y) = (clip.x / clip.w, clip.y / clip.w);
             let u = (ndc_x + 1.0) / 2.0 * 120.0 - 0.5;
             let v = (1.0 - ndc_y) / 2.0 * 88.0 - 0.5;
-            let (eu, ev) = k.project(&p).unwrap();
+            let [eu, ev] = k.project(&p).unwrap();
             assert!(
                 (u - eu).abs() < 1e-9 && (v - ev).abs() < 1e-9,
                 "{u},{v} vs {eu},{ev}"
@@ -204,19 +113,5 @@ mod tests {
             let z = clip.z / clip.w;
             assert!((0.0..=1.0).contains(&z));
         }
-    }
-
-    #[test]
-    fn optical_axis_is_the_mount_x_axis() {
-        let r = mount_to_optical();
-        assert!((r * Vector3::z() - Vector3::x()).norm() < 1e-12);
-        assert!(
-            (r * Vector3::x() + Vector3::y()).norm() < 1e-12,
-            "optical x (right) is mount -y"
-        );
-        assert!(
-            (r * Vector3::y() + Vector3::z()).norm() < 1e-12,
-            "optical y (down) is mount -z"
-        );
     }
 }

@@ -74,7 +74,7 @@ fn visible_chunks(chunks: &[Chunk], view: &CameraView, m: &Matrix4<f64>) -> Vec<
         })
         .collect();
     seen.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
-    let scale = view.intrinsics.alpha_u.max(view.intrinsics.alpha_v) / LOD_FOCAL_PX;
+    let scale = view.intrinsics.k.alpha_u.max(view.intrinsics.k.alpha_v) / LOD_FOCAL_PX;
     seen.into_iter()
         .map(|(d, i)| {
             let lod = LOD_FROM_M.iter().filter(|&&from| d >= from * scale).count();

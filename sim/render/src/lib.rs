@@ -22,7 +22,7 @@ mod draw;
 mod gpu;
 mod mesh;
 
-pub use camera::{intrinsics_of, mount_to_optical, CameraView, Intrinsics};
+pub use camera::CameraView;
 pub use gpu::{AdapterSummary, Frame, RenderError, RenderOptions, Renderer};
 pub use mesh::{RobotDraw, RobotPart};
 

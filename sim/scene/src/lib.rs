@@ -22,7 +22,7 @@ pub use load::{
     load_robot_model, load_scenario, load_scenario_text, LoadOptions, ResolvedRobot, Scenario,
 };
 pub use robot::{
-    Body, DriveKind, Helicopter, Intrinsics, Mount, Pilot, RobotModel, Sensor, SlamTuning,
+    camera_geometry, Body, DriveKind, Helicopter, Mount, Pilot, RobotModel, Sensor, SlamTuning,
     SteeringKind, Wheels, HAT_SCALE, HAT_THICKNESS_M,
 };
 pub use scenario::{

@@ -165,18 +165,22 @@ pub struct Mount {
     pub rpy_deg: [f64; 3],
 }
 
-/// Pinhole intrinsics given directly, in pixels.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct Intrinsics {
-    /// Focal length along u (αu), pixels.
-    pub alpha_u: f64,
-    /// Focal length along v (αv), pixels.
-    pub alpha_v: f64,
-    /// Principal point u0, pixels.
-    pub u0: f64,
-    /// Principal point v0, pixels.
-    pub v0: f64,
+/// A camera's geometry: its `intrinsics` table where given, else square pixels centred in the
+/// image with the horizontal opening angle `hfov_deg` (60 degrees where neither is given).
+pub fn camera_geometry(
+    width: u32,
+    height: u32,
+    hfov_deg: Option<f64>,
+    k: Option<&hetsim_msgs::Pinhole>,
+) -> hetsim_msgs::CameraGeometry {
+    match k {
+        Some(k) => hetsim_msgs::CameraGeometry {
+            width,
+            height,
+            k: *k,
+        },
+        None => hetsim_msgs::CameraGeometry::from_hfov(width, height, hfov_deg.unwrap_or(60.0)),
+    }
 }
 
 /// A sensor on a robot.
@@ -200,7 +204,7 @@ pub enum Sensor {
         hfov_deg: Option<f64>,
         /// Intrinsics (override `hfov_deg`).
         #[serde(default)]
-        intrinsics: Option<Intrinsics>,
+        intrinsics: Option<hetsim_msgs::Pinhole>,
         /// Gaussian pixel noise, grey levels (0-255).
         #[serde(default)]
         pixel_noise_sigma: f64,
@@ -231,7 +235,7 @@ pub enum Sensor {
         hfov_deg: Option<f64>,
         /// Intrinsics (override `hfov_deg`).
         #[serde(default)]
-        intrinsics: Option<Intrinsics>,
+        intrinsics: Option<hetsim_msgs::Pinhole>,
         /// Distance between the optical centres, metres.
         baseline_m: f64,
         /// Gaussian pixel noise, grey levels (0-255).

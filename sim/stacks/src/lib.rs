@@ -24,7 +24,7 @@ pub struct StereoBench {
     /// The sensor's name (its cameras are `<name>/left` and `<name>/right`).
     pub name: String,
     /// The left camera's pinhole intrinsics (the right one's are the same).
-    pub intrinsics: hetsim_render::Intrinsics,
+    pub intrinsics: hetsim_msgs::CameraGeometry,
     /// Baseline, metres (the right camera sits at -baseline along the left's y).
     pub baseline_m: f64,
     /// The left camera's mount in the body frame (body axis convention, x along the view).
@@ -45,7 +45,7 @@ pub fn stereo_bench(robot: &ResolvedRobot) -> Option<StereoBench> {
             ..
         } => Some(StereoBench {
             name: name.clone(),
-            intrinsics: hetsim_render::intrinsics_of(
+            intrinsics: hetsim_scene::camera_geometry(
                 *width_px,
                 *height_px,
                 *hfov_deg,
@@ -95,15 +95,10 @@ pub fn build_stack(
             baseline_m: baseline,
             body_from_mount,
         }) => {
-            let camera = hetsim_vision::Camera {
-                alpha_u: k.alpha_u,
-                alpha_v: k.alpha_v,
-                u0: k.u0,
-                v0: k.v0,
-            };
+            let camera = k.k;
             let body_from_camera = nalgebra::Isometry3::from_parts(
                 body_from_mount.translation,
-                body_from_mount.rotation * hetsim_render::mount_to_optical(),
+                body_from_mount.rotation * hetsim_msgs::mount_to_optical(),
             );
             // The seed's SLAM (which carries the stereo VO): local EKF sub-maps with
             // inverse-depth points, initialized with the seed's values for the robot kind.

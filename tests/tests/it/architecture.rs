@@ -8,6 +8,8 @@
 //! * `hetsim-msgs` depends on nothing of ours;
 //! * each heavy dependency lives in one crate (rapier in physics, wgpu in render, clap and
 //!   indicatif and anyhow in the binary);
+//! * one camera geometry type: only `hetsim-msgs` defines pinhole parameters, and the crate
+//!   that builds robot stacks reaches no renderer through its dependencies;
 //! * no crate's top-level modules form a cycle through `crate::` paths;
 //! * ARCHITECTURE.md's list of each crate's dependencies is the one `cargo metadata` gives.
 //!
@@ -191,6 +193,55 @@ fn each_heavy_dependency_lives_in_one_crate() {
             .collect();
         assert_eq!(users, vec![home], "{heavy} is used by {users:?}");
     }
+}
+
+/// The crates `name` reaches through normal dependencies, itself included.
+fn reachable(all: &BTreeMap<String, (String, Vec<String>)>, name: &str) -> BTreeSet<String> {
+    let mut seen = BTreeSet::new();
+    let mut todo = vec![name.to_string()];
+    while let Some(n) = todo.pop() {
+        if seen.insert(n.clone()) {
+            if let Some((_, deps)) = all.get(&n) {
+                todo.extend(deps.iter().cloned());
+            }
+        }
+    }
+    seen
+}
+
+#[test]
+fn one_camera_geometry_type_and_stacks_reach_no_renderer() {
+    // A pinhole's parameters are declared once, in hetsim-msgs (`Pinhole`); everything else
+    // uses that type.
+    let mut declared = Vec::new();
+    for dir in ["sim", "robots", "tests/src"] {
+        for f in sources(&repo().join(dir)) {
+            let text = std::fs::read_to_string(&f).unwrap();
+            if text
+                .lines()
+                .any(|l| l.trim_start().starts_with("pub alpha_u: f64"))
+            {
+                declared.push(f.strip_prefix(repo()).unwrap().to_path_buf());
+            }
+        }
+    }
+    assert_eq!(
+        declared,
+        vec![PathBuf::from("robots/msgs/src/camera.rs")],
+        "pinhole parameters declared outside hetsim-msgs"
+    );
+    let all = packages();
+    let stacks = reachable(&all, "hetsim-stacks");
+    assert!(
+        !stacks.contains("hetsim-render") && !stacks.contains("hetsim-engine"),
+        "hetsim-stacks reaches {stacks:?}"
+    );
+    // Evaluation runs missions through the engine, so it reaches the renderer there, but it
+    // does not use it itself.
+    assert!(!all["hetsim-eval"]
+        .1
+        .iter()
+        .any(|d| d == "hetsim-render" || d == "wgpu"));
 }
 
 /// Every `.rs` file under a folder, sorted.

@@ -14,7 +14,8 @@
 //! refactor pass.
 
 use hetsim_eval::localize::load_database;
-use hetsim_render::{CameraView, Intrinsics, RenderOptions, Renderer};
+use hetsim_msgs::CameraGeometry;
+use hetsim_render::{CameraView, RenderOptions, Renderer};
 use hetsim_scene::{load_scenario, LoadOptions};
 use hetsim_tests::{hetsim_release, printed_digest, repo};
 use hetsim_vision::appearance::{best_match, Feature, Features};
@@ -477,7 +478,7 @@ fn lab_outputs(out: &Path) {
     let json: Value =
         serde_json::from_slice(&std::fs::read(out.join("coverage/database.json")).unwrap())
             .unwrap();
-    let k = Intrinsics::from_hfov(120, 88, 80.0);
+    let k = CameraGeometry::from_hfov(120, 88, 80.0);
     let mount = hetsim_msgs::pose_from_xyz_rpy([0.05, 0.0, 0.08], [0.0; 3]);
     // On the backend the run rendered on (the test process's own may be another).
     let manifest: Value =

@@ -2,24 +2,21 @@
 //! against the renderer's poses: Ressac's bench looking down from 40 m, over the same place
 //! from other positions and headings (a half turn included), and over another place.
 
+use hetsim_msgs::mount_to_optical;
+use hetsim_msgs::Pinhole;
 use hetsim_msgs::{pose_from_xyz_rpy, Pose};
-use hetsim_render::{mount_to_optical, CameraView, RenderOptions, Renderer};
+use hetsim_render::{CameraView, RenderOptions, Renderer};
 use hetsim_scene::{load_scenario, LoadOptions, Scenario};
 use hetsim_tests::repo;
 use hetsim_vision::harris::{detect, select_new};
 use hetsim_vision::place::{match_keyframes, KeyFrame, MatchParams};
 use hetsim_vision::stereo::{match_stereo, Bench};
-use hetsim_vision::{Camera, Gray};
+use hetsim_vision::Gray;
 use nalgebra::{Isometry3, Vector6};
 use rand::SeedableRng;
 
-const K: hetsim_render::Intrinsics = hetsim_tests::TEST_INTRINSICS;
-const CAM: Camera = Camera {
-    alpha_u: K.alpha_u,
-    alpha_v: K.alpha_v,
-    u0: K.u0,
-    v0: K.v0,
-};
+const K: hetsim_msgs::CameraGeometry = hetsim_tests::TEST_INTRINSICS;
+const CAM: Pinhole = K.k;
 const BASELINE: f64 = 0.9;
 
 fn village() -> Scenario {

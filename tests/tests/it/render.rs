@@ -2,8 +2,9 @@
 //!
 //! These need a graphics adapter; on CI that is Mesa's llvmpipe (GL) or lavapipe (Vulkan).
 
+use hetsim_msgs::CameraGeometry;
 use hetsim_msgs::{pose_from_xyz_rpy, Pose};
-use hetsim_render::{CameraView, Frame, Intrinsics, RenderOptions, Renderer};
+use hetsim_render::{CameraView, Frame, RenderOptions, Renderer};
 use hetsim_scene::world::SolidKind;
 use hetsim_scene::{load_scenario, LoadOptions, Scenario};
 use hetsim_tests::repo;
@@ -18,7 +19,7 @@ fn scenario(name: &str) -> Scenario {
 }
 
 /// A camera whose mount frame (x forward, y left, z up) is `world_from_mount`.
-fn view(k: Intrinsics, world_from_mount: Pose) -> CameraView {
+fn view(k: CameraGeometry, world_from_mount: Pose) -> CameraView {
     CameraView::from_mount(k, &world_from_mount, [0.02, 2000.0]).with_depth()
 }
 
@@ -36,14 +37,14 @@ fn reference_views() -> Vec<(&'static str, Scenario, CameraView)> {
     let dala = &village.robots[0].spec.start;
     let ground = village.world.ground_z(dala.x, dala.y);
     let rover = view(
-        Intrinsics::from_hfov(320, 240, 60.0),
+        CameraGeometry::from_hfov(320, 240, 60.0),
         pose_from_xyz_rpy(
             [dala.x, dala.y, ground + 1.4],
             [0.0, 8f64.to_radians(), dala.yaw_deg.to_radians()],
         ),
     );
     let heli = view(
-        Intrinsics::from_hfov(320, 240, 60.0),
+        CameraGeometry::from_hfov(320, 240, 60.0),
         pose_from_xyz_rpy(
             [dala.x, dala.y, 40.0],
             [0.0, 90f64.to_radians(), -45f64.to_radians()],
@@ -52,7 +53,7 @@ fn reference_views() -> Vec<(&'static str, Scenario, CameraView)> {
     let lab = scenario("lab");
     let c = &lab.robots[1].spec.start;
     let bot = view(
-        Intrinsics::from_hfov(120, 88, 80.0),
+        CameraGeometry::from_hfov(120, 88, 80.0),
         pose_from_xyz_rpy([c.x, c.y, 0.08], [0.0, 0.0, 0.0]),
     );
     vec![
@@ -150,7 +151,7 @@ fn building_corners_project_onto_their_rendered_depth() {
                 let p_world = pose * Point3::new(ex, ey, hz - 0.5);
                 let n_world = pose.rotation * face_n;
                 let p = optical_from_world * p_world;
-                let Some((u, v)) = k.project(&p.coords) else {
+                let Some([u, v]) = k.k.project(&p.coords) else {
                     continue;
                 };
                 let (iu, iv) = (u.round(), v.round());
@@ -163,7 +164,7 @@ fn building_corners_project_onto_their_rendered_depth() {
                     continue; // back face
                 }
                 // Depth where the pixel centre's ray meets the face's plane.
-                let ray = cam.world_from_optical.rotation * k.back_project(iu, iv);
+                let ray = cam.world_from_optical.rotation * k.k.back_project(iu, iv, 1.0);
                 let t = (p_world - eye).dot(&n_world) / ray.dot(&n_world);
                 let at = |du: i64, dv: i64| {
                     f.depth()
@@ -199,7 +200,7 @@ fn stereo_disparity_of_matched_points_is_f_b_over_z() {
     let s = scenario("village");
     let d = &s.robots[0].spec.start;
     let ground = s.world.ground_z(d.x, d.y);
-    let k = Intrinsics::from_hfov(512, 384, 60.0);
+    let k = CameraGeometry::from_hfov(512, 384, 60.0);
     let left = pose_from_xyz_rpy(
         [d.x, d.y, ground + 1.4],
         [0.0, 5f64.to_radians(), d.yaw_deg.to_radians()],
@@ -244,7 +245,7 @@ fn stereo_disparity_of_matched_points_is_f_b_over_z() {
             if a.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (a.len() as f64) < 100.0 {
                 continue;
             }
-            let expected = k.alpha_u * 0.35 / z;
+            let expected = k.k.alpha_u * 0.35 / z;
             let scores: Vec<(f64, usize)> = (0..=(expected as usize + 12).min(u - 6))
                 .map(|disp| {
                     let b = patch(&rt, u - disp);

@@ -1,15 +1,15 @@
 //! The local level of the hierarchical SLAM on rendered frames, against ground truth.
 
+use hetsim_msgs::{mount_to_optical, CameraGeometry};
 use hetsim_msgs::{pose_from_xyz_rpy, Image, Pose, PoseStamped, RobotStack, SensorMsg};
-use hetsim_render::{mount_to_optical, CameraView, Intrinsics, RenderOptions, Renderer};
+use hetsim_render::{CameraView, RenderOptions, Renderer};
 use hetsim_scene::{load_scenario, LoadOptions};
 use hetsim_slam::stack::{SlamParams, SlamStack};
 use hetsim_tests::repo;
 use hetsim_vision::stereo::Bench;
-use hetsim_vision::Camera;
 use nalgebra::Isometry3;
 
-const K: Intrinsics = hetsim_tests::TEST_INTRINSICS;
+const K: CameraGeometry = hetsim_tests::TEST_INTRINSICS;
 
 /// A stack that does nothing: the SLAM's inner pilot.
 struct Still;
@@ -65,12 +65,7 @@ fn run_sequence(frames: usize, lines: bool, truth_in_inbox: bool) -> Sequence {
     let right = mount * pose_from_xyz_rpy([0.0, -0.35, 0.0], [0.0; 3]);
     let body_from_camera =
         Isometry3::from_parts(mount.translation, mount.rotation * mount_to_optical());
-    let camera = Camera {
-        alpha_u: K.alpha_u,
-        alpha_v: K.alpha_v,
-        u0: K.u0,
-        v0: K.v0,
-    };
+    let camera = K.k;
     let mut stack = SlamStack::new(
         Box::new(Still),
         "dala",

@@ -1,7 +1,9 @@
 //! The vision front-end on rendered frames, against the renderer's ground truth.
 
+use hetsim_msgs::Pinhole;
+use hetsim_msgs::{mount_to_optical, CameraGeometry};
 use hetsim_msgs::{pose_from_xyz_rpy, Pose};
-use hetsim_render::{mount_to_optical, CameraView, Intrinsics, RenderOptions, Renderer};
+use hetsim_render::{CameraView, RenderOptions, Renderer};
 use hetsim_scene::world::SolidKind;
 use hetsim_scene::{load_scenario, LoadOptions, Scenario};
 use hetsim_tests::repo;
@@ -11,7 +13,7 @@ use hetsim_vision::segments::{
 };
 use hetsim_vision::stereo::{match_stereo, Bench};
 use hetsim_vision::vo::StereoVo;
-use hetsim_vision::{Camera, Gray};
+use hetsim_vision::Gray;
 use nalgebra::{Isometry3, Point3, Vector3};
 use rand::SeedableRng;
 
@@ -23,13 +25,8 @@ fn village() -> Scenario {
     .unwrap()
 }
 
-const K: Intrinsics = hetsim_tests::TEST_INTRINSICS;
-const CAM: Camera = Camera {
-    alpha_u: 443.4,
-    alpha_v: 443.4,
-    u0: 255.5,
-    v0: 191.5,
-};
+const K: CameraGeometry = hetsim_tests::TEST_INTRINSICS;
+const CAM: Pinhole = K.k;
 
 /// Left and right views of a bench whose left camera mount is `mount` (body convention).
 fn bench_views(mount: &Pose, baseline: f64) -> [CameraView; 2] {

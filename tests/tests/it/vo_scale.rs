@@ -15,7 +15,7 @@ use hetsim_scene::{load_scenario, LoadOptions, Scenario};
 use hetsim_tests::{repo, run_scenario};
 use hetsim_vision::stereo::Bench;
 use hetsim_vision::vo::StereoVo;
-use hetsim_vision::{Camera, Gray};
+use hetsim_vision::Gray;
 use nalgebra::{Quaternion, Translation3, UnitQuaternion};
 use rand::SeedableRng;
 use std::path::Path;
@@ -130,12 +130,7 @@ fn bench_of(scenario: &Scenario, name: &str) -> Bench {
     let b = hetsim_stacks::stereo_bench(robot).unwrap();
     let k = b.intrinsics;
     Bench {
-        camera: Camera {
-            alpha_u: k.alpha_u,
-            alpha_v: k.alpha_v,
-            u0: k.u0,
-            v0: k.v0,
-        },
+        camera: k.k,
         baseline_m: b.baseline_m,
     }
 }

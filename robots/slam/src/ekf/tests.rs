@@ -2,7 +2,7 @@
 
 use super::*;
 use crate::quat::tests::{assert_close, numeric};
-use hetsim_vision::Camera;
+use hetsim_msgs::Pinhole;
 use nalgebra::{Matrix3, Translation3, UnitQuaternion};
 use rand::{RngExt, SeedableRng};
 
@@ -10,7 +10,7 @@ pub(crate) fn forward_sensor() -> Sensor {
     // Looking along the body x axis, 1 m up.
     let r = Matrix3::new(0.0, 0.0, 1.0, -1.0, 0.0, 0.0, 0.0, -1.0, 0.0);
     Sensor::new(
-        Camera {
+        Pinhole {
             alpha_u: 400.0,
             alpha_v: 400.0,
             u0: 320.0,

@@ -352,7 +352,7 @@ mod tests {
             stamp_ns: 380_500_000_000,
             body_from_camera: hetsim_msgs::pose_from_xyz_rpy([0.6, 0.45, -0.5], [0.1, 1.4, -0.3]),
             frame: KeyFrame {
-                camera: hetsim_vision::Camera {
+                camera: hetsim_msgs::Pinhole {
                     alpha_u: 886.8,
                     alpha_v: 886.8,
                     u0: 511.5,

@@ -92,7 +92,7 @@ fn the_descriptor_survives_a_half_turn_and_tells_points_apart() {
 #[test]
 fn key_frames_cross_the_radio_bit_for_bit_and_truncation_is_refused() {
     let img = texture(120, 90, 2);
-    let cam = Camera {
+    let cam = Pinhole {
         alpha_u: 100.0,
         alpha_v: 100.0,
         u0: 59.5,
@@ -139,7 +139,7 @@ fn key_frames_cross_the_radio_bit_for_bit_and_truncation_is_refused() {
 #[test]
 fn a_half_turned_view_of_the_same_ground_gives_its_relative_pose_within_its_covariance() {
     let (w, h) = (240usize, 180usize);
-    let cam = Camera {
+    let cam = Pinhole {
         alpha_u: 200.0,
         alpha_v: 200.0,
         u0: (w as f64 - 1.0) / 2.0,

@@ -6,7 +6,7 @@ use super::*;
 /// frame is at `world_from_camera`), clipped to `near` metres in front of the camera. `None`
 /// when the whole segment is behind that plane.
 pub fn project_segment(
-    camera: &Camera,
+    camera: &Pinhole,
     world_from_camera: &Isometry3<f64>,
     p: &Point3<f64>,
     q: &Point3<f64>,

@@ -2,7 +2,8 @@
 //! resampled bilinearly from what the renderer drew.
 
 use super::Model;
-use hetsim_render::{mount_to_optical, Frame, Intrinsics};
+use hetsim_msgs::{mount_to_optical, CameraGeometry};
+use hetsim_render::Frame;
 use nalgebra::{UnitQuaternion, Vector3};
 use rayon::prelude::*;
 
@@ -53,7 +54,7 @@ pub(super) fn undistort(xd: f64, yd: f64, [k1, k2]: [f64; 2]) -> (f64, f64) {
 
 /// A pinhole model; with distortion, the render is padded so that every image pixel's
 /// undistorted ray falls inside it.
-pub(super) fn pinhole(k: Intrinsics, distortion: Option<[f64; 2]>) -> Model {
+pub(super) fn pinhole(k: CameraGeometry, distortion: Option<[f64; 2]>) -> Model {
     let Some(d) = distortion else {
         return Model::Pinhole {
             distortion,
@@ -67,8 +68,8 @@ pub(super) fn pinhole(k: Intrinsics, distortion: Option<[f64; 2]>) -> Model {
         [(t * w, 0.0), (t * w, h), (0.0, t * h), (w, t * h)]
     });
     for (u, v) in border {
-        let (xu, yu) = undistort((u - k.u0) / k.alpha_u, (v - k.v0) / k.alpha_v, d);
-        let (ru, rv) = (k.alpha_u * xu + k.u0, k.alpha_v * yu + k.v0);
+        let (xu, yu) = undistort((u - k.k.u0) / k.k.alpha_u, (v - k.k.v0) / k.k.alpha_v, d);
+        let (ru, rv) = (k.k.alpha_u * xu + k.k.u0, k.k.alpha_v * yu + k.k.v0);
         left = left.max(-ru);
         right = right.max(ru - w);
         top = top.max(-rv);
@@ -77,12 +78,14 @@ pub(super) fn pinhole(k: Intrinsics, distortion: Option<[f64; 2]>) -> Model {
     let (pl, pr, pt, pb) = [left, right, top, bottom]
         .map(|m| m.ceil() as u32 + 1)
         .into();
-    let render = Intrinsics {
+    let render = CameraGeometry {
         width: k.width + pl + pr,
         height: k.height + pt + pb,
-        u0: k.u0 + pl as f64,
-        v0: k.v0 + pt as f64,
-        ..k
+        k: hetsim_msgs::Pinhole {
+            u0: k.k.u0 + pl as f64,
+            v0: k.k.v0 + pt as f64,
+            ..k.k
+        },
     };
     Model::Pinhole { distortion, render }
 }
@@ -91,8 +94,8 @@ pub(super) fn pinhole(k: Intrinsics, distortion: Option<[f64; 2]>) -> Model {
 /// undistorted position of its ray (fixed-point inversion of the distortion).
 pub(super) fn distort(
     f: &Frame,
-    k: &Intrinsics,
-    render: &Intrinsics,
+    k: &CameraGeometry,
+    render: &CameraGeometry,
     d: [f64; 2],
 ) -> (Vec<u8>, Option<Vec<f32>>) {
     let n = (k.width * k.height) as usize;
@@ -101,15 +104,15 @@ pub(super) fn distort(
     for v in 0..k.height {
         for u in 0..k.width {
             let (xu, yu) = undistort(
-                (u as f64 - k.u0) / k.alpha_u,
-                (v as f64 - k.v0) / k.alpha_v,
+                (u as f64 - k.k.u0) / k.k.alpha_u,
+                (v as f64 - k.k.v0) / k.k.alpha_v,
                 d,
             );
             let i = (v * k.width + u) as usize;
             if let Some((c, d)) = bilinear(
                 f,
-                render.alpha_u * xu + render.u0,
-                render.alpha_v * yu + render.v0,
+                render.k.alpha_u * xu + render.k.u0,
+                render.k.alpha_v * yu + render.k.v0,
             ) {
                 for ch in 0..3 {
                     rgb[i * 3 + ch] = c[ch].round() as u8;
@@ -126,7 +129,7 @@ pub(super) fn distort(
 /// For each panorama pixel: which cube face sees its ray, where, and the ratio of range to
 /// that face's depth.
 pub(super) fn panorama_lookup(
-    face: &Intrinsics,
+    face: &CameraGeometry,
     w: u32,
     h: u32,
     [lo, hi]: [f64; 2],
@@ -149,7 +152,7 @@ pub(super) fn panorama_lookup(
                 .map(|(i, r)| (i, to_optical * (r * dir)))
                 .max_by(|a, b| a.1.z.total_cmp(&b.1.z))
                 .expect("six faces");
-            let (fu, fv) = face.project(&p).unwrap_or((0.0, 0.0));
+            let [fu, fv] = face.k.project(&p).unwrap_or([0.0, 0.0]);
             let (fu, fv) = (
                 fu.clamp(0.0, (face.width - 1) as f64),
                 fv.clamp(0.0, (face.height - 1) as f64),
@@ -190,7 +193,7 @@ pub(super) struct Taps {
 /// ascending): a face no pixel reads (above 45° for the robot file's elevations) is not
 /// rendered at all.
 pub(super) fn panorama_taps(
-    face: &Intrinsics,
+    face: &CameraGeometry,
     lookup: &[(u8, f32, f32, f32)],
 ) -> (Taps, Vec<usize>) {
     let mut used = [false; 6];

@@ -3,7 +3,7 @@
 use super::*;
 
 /// A synthetic render whose red channel is the column and green the row (both < 256).
-fn ramp(k: &Intrinsics) -> Frame {
+fn ramp(k: &CameraGeometry) -> Frame {
     let mut rgba = Vec::new();
     for v in 0..k.height {
         for u in 0..k.width {
@@ -20,13 +20,15 @@ fn ramp(k: &Intrinsics) -> Frame {
 
 #[test]
 fn radial_distortion_samples_where_the_model_says() {
-    let k = Intrinsics {
+    let k = CameraGeometry {
         width: 120,
         height: 100,
-        alpha_u: 90.0,
-        alpha_v: 90.0,
-        u0: 59.5,
-        v0: 49.5,
+        k: hetsim_msgs::Pinhole {
+            alpha_u: 90.0,
+            alpha_v: 90.0,
+            u0: 59.5,
+            v0: 49.5,
+        },
     };
     let (k1, k2) = (-0.2, 0.05);
     let Model::Pinhole { render, .. } = pinhole(k, Some([k1, k2])) else {
@@ -51,24 +53,26 @@ fn radial_distortion_samples_where_the_model_says() {
         let i = ((v * k.width + u) * 3) as usize;
         let (su, sv) = (rgb[i] as f64, rgb[i + 1] as f64);
         let (xu, yu) = (
-            (su - render.u0) / render.alpha_u,
-            (sv - render.v0) / render.alpha_v,
+            (su - render.k.u0) / render.k.alpha_u,
+            (sv - render.k.v0) / render.k.alpha_v,
         );
         let r2 = xu * xu + yu * yu;
         let s = 1.0 + k1 * r2 + k2 * r2 * r2;
-        let (ud, vd) = (k.alpha_u * xu * s + k.u0, k.alpha_v * yu * s + k.v0);
+        let (ud, vd) = (k.k.alpha_u * xu * s + k.k.u0, k.k.alpha_v * yu * s + k.k.v0);
         assert!(
             (ud - u as f64).abs() < 1.0 && (vd - v as f64).abs() < 1.0,
             "pixel ({u}, {v}) sampled ({su}, {sv}) -> ({ud:.2}, {vd:.2})"
         );
     }
     // Barrel distortion (k1 < 0): the corner samples from beyond the image's own corner.
-    assert!(rgb[0] as f64 + 0.5 < render.u0 - k.u0 && rgb[1] as f64 + 0.5 < render.v0 - k.v0);
+    assert!(
+        rgb[0] as f64 + 0.5 < render.k.u0 - k.k.u0 && rgb[1] as f64 + 0.5 < render.k.v0 - k.k.v0
+    );
 }
 
 #[test]
 fn panorama_centre_column_looks_forward_and_the_top_row_up() {
-    let face = Intrinsics::from_hfov(64, 64, 90.0);
+    let face = CameraGeometry::from_hfov(64, 64, 90.0);
     let lookup = panorama_lookup(&face, 360, 180, [-1.5, 1.5]);
     // Centre column, middle row: straight ahead, face 0 at its centre.
     let (f, u, v, scale) = lookup[90 * 360 + 180];
@@ -87,7 +91,7 @@ fn panorama_centre_column_looks_forward_and_the_top_row_up() {
 #[test]
 fn the_panorama_in_fixed_point_is_the_exact_bilinear_within_a_level_and_a_half_and_skips_the_top_face(
 ) {
-    let face = Intrinsics::from_hfov(64, 64, 90.0);
+    let face = CameraGeometry::from_hfov(64, 64, 90.0);
     let lookup = panorama_lookup(&face, 256, 128, [-75f64.to_radians(), 15f64.to_radians()]);
     let (taps, faces) = panorama_taps(&face, &lookup);
     // Elevations up to 15 degrees never reach the upward face (4): five faces are rendered.
@@ -130,7 +134,7 @@ fn the_panorama_in_fixed_point_is_the_exact_bilinear_within_a_level_and_a_half_a
 
 #[test]
 fn panorama_range_is_the_nearest_source_pixels_and_face_edges_read_the_edge_pixel() {
-    let face = Intrinsics::from_hfov(64, 64, 90.0);
+    let face = CameraGeometry::from_hfov(64, 64, 90.0);
     // The panorama's own rays, and taps on the faces' last row and column.
     let mut lookup = panorama_lookup(&face, 256, 128, [-75f64.to_radians(), 15f64.to_radians()]);
     lookup.extend([

@@ -26,10 +26,10 @@ fn t_bs(body_from_sensor: &Pose) -> String {
 /// the hetsim camera.
 pub(super) fn camera_yaml(shot: &Shot) -> String {
     let k = &shot.intrinsics;
-    let (model, intrinsics) = if k.alpha_u > 0.0 {
+    let (model, intrinsics) = if k.k.alpha_u > 0.0 {
         (
             "pinhole",
-            format!("[{}, {}, {}, {}]", k.alpha_u, k.alpha_v, k.u0, k.v0),
+            format!("[{}, {}, {}, {}]", k.k.alpha_u, k.k.alpha_v, k.k.u0, k.k.v0),
         )
     } else {
         ("equirectangular", "[]".to_string())

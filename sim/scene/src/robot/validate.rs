@@ -380,7 +380,7 @@ fn check_optics<'a>(
     c: &Checker,
     at: &dyn Fn(&'static str) -> [&'a str; 3],
     hfov_deg: Option<f64>,
-    intrinsics: Option<&Intrinsics>,
+    intrinsics: Option<&hetsim_msgs::Pinhole>,
 ) -> Result<(), SceneError> {
     match (hfov_deg, intrinsics) {
         (_, Some(k)) => {
