@@ -94,7 +94,7 @@ pub fn plan_scenario_with(
     let parent = scenario
         .robots
         .iter()
-        .find(|r| r.spec.model == "parent")
+        .find(|r| r.model.has_laser())
         .or(scenario.robots.first())
         .ok_or_else(|| EvalError::Plan("no robots".into()))?;
     let parent_start = vertex_of(parent.spec.start.x, parent.spec.start.y)
@@ -102,7 +102,7 @@ pub fn plan_scenario_with(
     let kids: Vec<Vertex> = scenario
         .robots
         .iter()
-        .filter(|r| r.spec.model == "ctbot")
+        .filter(|r| r.model.is_tracked_child())
         .filter_map(|r| vertex_of(r.spec.start.x, r.spec.start.y))
         .collect();
     let child_starts = if kids.len() == params.children {

@@ -421,6 +421,21 @@ pub enum Sensor {
     },
 }
 
+impl RobotModel {
+    /// Whether it carries a laser scanner: in a coverage team, the parent, which maps with it
+    /// (seed 002). Roles come from what a robot file declares, never from a model's name.
+    pub fn has_laser(&self) -> bool {
+        self.sensors
+            .iter()
+            .any(|s| matches!(s, Sensor::Laser { .. }))
+    }
+
+    /// Whether it wears a hat for a parent's tracker: in a coverage team, a child.
+    pub fn is_tracked_child(&self) -> bool {
+        self.body.hat
+    }
+}
+
 impl Sensor {
     /// Whether this is an enabled oracle: a sensor that gives the robot ground truth.
     pub fn is_enabled_oracle(&self) -> bool {

@@ -435,11 +435,12 @@ fn operator_start(scenario: &Scenario, robot: &ResolvedRobot) -> [f64; 3] {
 /// Planning parameters from the scenario's `[coverage]` table and its robots.
 pub fn coverage_params(scenario: &Scenario) -> CoverageParams {
     let spec = scenario.file.coverage.clone().unwrap_or_default();
-    let radius = |model: &str, default: f64| {
+    // The parent is the robot with the laser, the children the robots with hats.
+    let radius = |role: fn(&hetsim_scene::RobotModel) -> bool, default: f64| {
         scenario
             .robots
             .iter()
-            .find(|r| r.spec.model == model)
+            .find(|r| role(&r.model))
             .map_or(default, |r| {
                 r.model.body.length_m.max(r.model.body.width_m) / 2.0
             })
@@ -456,15 +457,15 @@ pub fn coverage_params(scenario: &Scenario) -> CoverageParams {
         child_fov_deg: spec.child_fov_deg,
         view_margin_deg: spec.view_margin_deg,
         view_margin_m: spec.view_margin_m,
-        parent_radius_m: radius("parent", 0.225),
-        child_radius_m: radius("ctbot", 0.06),
+        parent_radius_m: radius(hetsim_scene::RobotModel::has_laser, 0.225),
+        child_radius_m: radius(hetsim_scene::RobotModel::is_tracked_child, 0.06),
         children: spec
             .children
             .unwrap_or_else(|| {
                 scenario
                     .robots
                     .iter()
-                    .filter(|r| r.spec.model == "ctbot")
+                    .filter(|r| r.model.is_tracked_child())
                     .count()
             })
             .max(1),
