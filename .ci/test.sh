@@ -16,7 +16,9 @@ step "tests build" cargo test --release --workspace --no-run
 step "cargo test --workspace (HETSIM_BACKEND=vulkan)" \
     env HETSIM_BACKEND=vulkan cargo test --release --workspace
 # `--workspace` as above: with `-p` Cargo resolves other features and builds everything again.
+# oracle:: (truth withheld, same stack bytes) is not here: what it checks is how truth is
+# routed, not how images are rasterized, and golden runs the lab mission on GL in full.
 step "rendered-image tests again (HETSIM_BACKEND=gl)" \
     env HETSIM_BACKEND=gl cargo test --release --workspace --test it -- \
-    render:: vision:: vo_scale:: slam:: team:: cameras:: oracle::
+    render:: vision:: vo_scale:: slam:: team:: cameras::
 step "ROS 2 recordings decoded by Foxglove's and rosbags' decoders" bash tests/ros2/check.sh

@@ -11,11 +11,11 @@ use hetsim_core::{SimClock, SimRng, Streams};
 use hetsim_msgs::{Delivered, Outgoing};
 use hetsim_scene::CommsSpec;
 use rand::RngExt;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 
 /// What happened to the messages of a run.
-#[derive(Clone, Debug, Default, PartialEq, Eq, Serialize)]
+#[derive(Clone, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 pub struct CommsStats {
     /// Messages handed to the radio.
     pub sent: u64,

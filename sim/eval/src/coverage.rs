@@ -3,10 +3,10 @@
 use crate::EvalError;
 use hetsim_coverage::{plan, CoverageParams, Map, Plan, Vertex};
 use hetsim_scene::Scenario;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 /// The figures of Tables I and II and Figs. 3 and 4, for one plan.
-#[derive(Clone, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct CoverageMetrics {
     /// |V|.
     pub vertices: usize,

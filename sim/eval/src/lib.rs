@@ -33,6 +33,24 @@ use std::path::PathBuf;
 /// Why an evaluation could not be made or written.
 #[derive(Debug, thiserror::Error)]
 pub enum EvalError {
+    /// A run's `metrics.json` could not be read.
+    #[error("{}: {source}", path.display())]
+    ReadMetrics {
+        /// The file.
+        path: std::path::PathBuf,
+        /// Why.
+        #[source]
+        source: std::io::Error,
+    },
+    /// A run's `metrics.json` is not the metrics this version writes.
+    #[error("{}: not the metrics.json this hetsim writes: {source}", path.display())]
+    ParseMetrics {
+        /// The file.
+        path: std::path::PathBuf,
+        /// Where and why it does not parse.
+        #[source]
+        source: serde_json::Error,
+    },
     /// A file could not be read or written.
     #[error(transparent)]
     File(#[from] hetsim_core::files::FileError),

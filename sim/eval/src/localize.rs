@@ -6,7 +6,7 @@ use crate::stats::MeanStd;
 use crate::EvalError;
 use hetsim_vision::appearance::{best_match, Feature, Features};
 use hetsim_vision::Gray;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use std::path::Path;
 
 /// An image of a database, with its positions and features.
@@ -99,7 +99,7 @@ pub fn load_database(run: &Path) -> Result<Vec<DbImage>, EvalError> {
 }
 
 /// Localization errors of one feature.
-#[derive(Clone, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct FeatureErrors {
     /// The feature.
     pub feature: String,
@@ -239,7 +239,7 @@ pub fn in_lockstep(
 }
 
 /// Mission figures over several runs, localization by cross-validation and along paths.
-#[derive(Clone, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Summary {
     /// Mapping runs.
     pub runs: usize,
@@ -282,7 +282,7 @@ pub struct Summary {
 }
 
 /// The particle filter's results over several paths, for one feature.
-#[derive(Clone, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct PathSummary {
     /// The feature.
     pub feature: String,

@@ -23,7 +23,7 @@ use hetsim_msgs::Pose;
 use hetsim_scene::Scenario;
 use hetsim_slam::report::SlamReport;
 use nalgebra::{Matrix6, Point3, Vector3};
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 
 /// A link farther than this from the truth is a false match, metres.
@@ -39,7 +39,7 @@ const LEAVE: f64 = 1.5;
 const PERIOD_S: f64 = 30.0;
 
 /// One accepted link judged.
-#[derive(Clone, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct LinkJudged {
     /// When, seconds.
     pub time_s: f64,
@@ -60,7 +60,7 @@ pub struct LinkJudged {
 }
 
 /// A robot's image matching against the truth.
-#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct MatchingMetrics {
     /// The accepted matches.
     pub links: Vec<LinkJudged>,

@@ -8,11 +8,11 @@ use crate::EvalError;
 use hetsim_engine::comms::CommsStats;
 use hetsim_engine::RunOutput;
 use hetsim_scene::Scenario;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 
 /// What a robot did.
-#[derive(Clone, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct RobotMetrics {
     /// Robot name.
     pub name: String,
@@ -33,7 +33,7 @@ pub struct RobotMetrics {
 }
 
 /// What the run measured (deterministic: part of the digest).
-#[derive(Clone, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Metrics {
     /// Ticks simulated.
     pub ticks: u64,
@@ -75,6 +75,18 @@ pub struct Metrics {
 }
 
 impl Metrics {
+    /// The metrics of a results folder, read back from its `metrics.json` as the typed struct
+    /// they were written from (a renamed or retyped field is an error here, not a missing key
+    /// in a caller).
+    pub fn read(results: &std::path::Path) -> Result<Self, EvalError> {
+        let path = results.join("metrics.json");
+        let bytes = std::fs::read(&path).map_err(|source| EvalError::ReadMetrics {
+            path: path.clone(),
+            source,
+        })?;
+        serde_json::from_slice(&bytes).map_err(|source| EvalError::ParseMetrics { path, source })
+    }
+
     /// Evaluates a run.
     pub fn compute(scenario: &Scenario, output: &RunOutput) -> Result<Self, EvalError> {
         let robots: Vec<RobotMetrics> = output

@@ -9,11 +9,11 @@ use hetsim_engine::RunOutput;
 use hetsim_msgs::Pose;
 use hetsim_slam::report::SlamReport;
 use nalgebra::Matrix6;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 
 /// One event, judged against the truth at its frame.
-#[derive(Clone, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct EventMetrics {
     /// `gps`, `rendezvous` or `image_match`.
     pub kind: String,
@@ -32,7 +32,7 @@ pub struct EventMetrics {
 }
 
 /// One robot's SLAM figures.
-#[derive(Clone, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct RobotSlam {
     /// Mean normalized estimation error squared of the `slam` poses (6 degrees of freedom:
     /// 6 for a consistent estimate), over `nees_poses` poses.
@@ -61,7 +61,7 @@ pub struct RobotSlam {
 }
 
 /// The SLAM section of `metrics.json`.
-#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct SlamMetrics {
     /// Per robot.
     pub robots: BTreeMap<String, RobotSlam>,

@@ -7,10 +7,10 @@
 //! * [`MeanStd::sample`] (divide by n - 1, Bessel) estimates the spread of the process the
 //!   values were drawn from, e.g. over the seeds of a sweep cell, as the seed's tables report.
 
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 /// Mean and standard deviation.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct MeanStd {
     /// Mean.
     pub mean: f64,

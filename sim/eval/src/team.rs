@@ -10,7 +10,7 @@ use hetsim_msgs::{wrap_angle, yaw_of, Pose};
 use hetsim_physics::Physics;
 use hetsim_scene::Scenario;
 use nalgebra::{Isometry3, Point3};
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use serde_json::json;
 
 /// The parent's report and who made it.
@@ -37,7 +37,7 @@ impl TeamOutcome {
 }
 
 /// What a coverage mission did (the figures of Section V.B), against ground truth.
-#[derive(Clone, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct TeamMetrics {
     /// Children in the team.
     pub children: usize,
@@ -120,7 +120,7 @@ pub struct TeamMetrics {
 /// The parent's fixes of the children, placed on the map by its own pose, against the
 /// children's true positions at the fixes' stamps: the tracker's accuracy (the seed's
 /// 0.04 ± 0.02 m within r_los) with the parent's localization error added.
-#[derive(Clone, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Tracking {
     /// Fixes compared (the tracked paths keep at most one per child every 0.2 s).
     pub fixes: usize,
@@ -168,7 +168,7 @@ impl Tracking {
 
 /// The parent's Monte Carlo localization (its `mcl` trajectory, one pose per filter update)
 /// against its true pose at the same stamps.
-#[derive(Clone, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct ParentLocalization {
     /// Estimates compared.
     pub estimates: usize,

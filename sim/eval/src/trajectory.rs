@@ -9,11 +9,11 @@
 use hetsim_engine::RunOutput;
 use hetsim_msgs::{ArtifactData, Pose};
 use nalgebra::Vector3;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 
 /// How good an estimated trajectory is.
-#[derive(Clone, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Accuracy {
     /// Poses paired with truth.
     pub poses: usize,

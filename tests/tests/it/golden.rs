@@ -111,8 +111,18 @@ fn check(
     }
 }
 
+/// A run's metrics.json, after checking that the typed `Metrics` holds every field of it: read
+/// into the struct and back, the same document.
 fn metrics(dir: &Path) -> Value {
-    serde_json::from_slice(&std::fs::read(dir.join("metrics.json")).unwrap()).unwrap()
+    let doc: Value =
+        serde_json::from_slice(&std::fs::read(dir.join("metrics.json")).unwrap()).unwrap();
+    let typed = hetsim_eval::Metrics::read(dir).unwrap();
+    assert_eq!(
+        serde_json::to_value(&typed).unwrap(),
+        doc,
+        "metrics.json and the typed Metrics differ"
+    );
+    doc
 }
 
 /// The parent localizes from its laser: its error stays below 0.08 m (its 0.28 m body
@@ -568,7 +578,9 @@ fn golden_indoor_grid_20_without_cameras() {
             "none",
             "0f131e6bf2b471e7a50864887f9c29120be2c71b8fa50b4fcf24f1ecfc3338ff",
         )],
-        &|_| {},
+        &|out| {
+            metrics(out);
+        },
     ));
 }
 
@@ -592,6 +604,9 @@ fn golden_rendered_village_short() {
                 "839105d1fbba9f9da6a070cd3b56992595449dfca0e6addfa085366995d3950d",
             ),
         ],
-        &crate::slam::cooperative_slam_corrects_ressac_and_keeps_dala_within_one_percent,
+        &|out| {
+            metrics(out);
+            crate::slam::cooperative_slam_corrects_ressac_and_keeps_dala_within_one_percent(out)
+        },
     );
 }

@@ -2,6 +2,7 @@
 //! team (the parent, which localizes from its laser, and the children) does not depend on it:
 //! with every truth message withheld from them they compute the same bytes.
 
+use hetsim_eval::Metrics;
 use hetsim_tests::{hetsim, printed_digest, repo};
 use serde_json::Value;
 use std::path::Path;
@@ -76,8 +77,11 @@ fn the_coverage_team_computes_the_same_bytes_without_truth() {
     );
     // The truth really was delivered in one run and withheld in the other.
     let truth_count = |out: &Path, robot: &str| {
-        json(&out.join("metrics.json"))["messages"][format!("{robot}/truth")]
-            .as_u64()
+        Metrics::read(out)
+            .unwrap()
+            .messages
+            .get(&format!("{robot}/truth"))
+            .copied()
             .unwrap_or(0)
     };
     for robot in ["parent", "child1", "child2", "child3"] {
@@ -90,8 +94,10 @@ fn the_coverage_team_computes_the_same_bytes_without_truth() {
     assert_eq!(stacks(&m_without).len(), 4);
     assert_eq!(stacks(&m_without), stacks(&m_with));
     // And the mission got somewhere in those two minutes: images were taken.
-    let imaged = json(&without.join("metrics.json"))["team"]["imaged"]
-        .as_u64()
-        .unwrap();
+    let imaged = Metrics::read(&without)
+        .unwrap()
+        .team
+        .expect("a team")
+        .imaged;
     assert!(imaged > 0, "no vertex imaged in two minutes");
 }
