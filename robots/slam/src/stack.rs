@@ -76,6 +76,9 @@ mod events;
 mod params;
 pub use params::{EdgeDrift, SlamParams};
 
+mod tuning;
+pub use tuning::{Bound, SlamTuning};
+
 mod places;
 pub use places::PLACE_TOPIC;
 

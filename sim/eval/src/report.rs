@@ -419,7 +419,10 @@ pub fn coverage_report(
     ));
     md.push_str("## Figs. 3 and 4 with only the starting points checked\n\n`scenarios/sweeps/start-points-fig3.toml` and `start-points.toml`: Figs. 3 and 4's maps and teams again with the view rule relaxed to what Section IV.C says of the starting points (no starting point in the view of another); grabs are not checked, so images may show robots. Without waits for clear views the children's parallel walks pay off longer: mapping falls with every child added, and the best team grows further with r_los.\n\n![Fig. 3 with only the starting points checked](coverage-fig3-start-points.png)\n\n![Fig. 4 with only the starting points checked](coverage-fig4-start-points.png)\n\n");
     md.push_str(&obstacles::sizes(&s4, ratio_ax4, sizes_ax4));
-    let reading_names: Vec<&str> = hetsim_scene::READINGS[1..].to_vec();
+    let reading_names: Vec<&str> = hetsim_coverage::Reading::ALL[1..]
+        .iter()
+        .map(|r| r.name())
+        .collect();
     let runs = |summary, sweep: &Sweep, column: &str, reading: bool| {
         Ok::<_, EvalError>(readings::Runs {
             summary,

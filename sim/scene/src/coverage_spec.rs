@@ -2,6 +2,7 @@
 
 use crate::check::Checker;
 use crate::SceneError;
+use hetsim_coverage::Reading;
 use serde::{Deserialize, Serialize};
 
 /// The `[coverage]` table: the parent/child team's mapping parameters (seed 002).
@@ -32,7 +33,7 @@ pub struct CoverageSpec {
     /// simulator runs, whose images are rendered).
     pub views: String,
     /// Which reading of the points Section IV leaves open the planner takes: "ours" (the
-    /// shipped one) or one of [`READINGS`]'s others, each changing one decision (grid planning
+    /// shipped one) or another of [`hetsim_coverage::Reading`]'s names, each changing one decision (grid planning
     /// only: refused in a mission the simulator runs).
     pub reading: String,
     /// After mapping, the first child localizes from the database on a new path of this many
@@ -57,24 +58,8 @@ impl Default for CoverageSpec {
     }
 }
 
-/// The names `[coverage] reading` takes, "ours" first (`hetsim_coverage::Reading`'s; a test
-/// in `tests/tests/it/coverage.rs` keeps the two lists the same).
-pub const READINGS: [&str; 11] = [
-    "ours",
-    "parent_a_point",
-    "los_strict",
-    "los_open",
-    "eq6_last_choice",
-    "eq6_every_choice",
-    "ties_nearest_last",
-    "ties_nearest_any",
-    "h_from_los_free",
-    "tour_8_connected",
-    "n_uncovered",
-];
-
 impl CoverageSpec {
-    /// `reading` is one of [`READINGS`], and only "ours" in a scenario whose parent
+    /// `reading` names a [`hetsim_coverage::Reading`], and only "ours" in a scenario whose parent
     /// (`mission_parent`, by name) runs the mission.
     pub(crate) fn check_reading(
         &self,
@@ -82,15 +67,15 @@ impl CoverageSpec {
         mission_parent: Option<&str>,
     ) -> Result<(), SceneError> {
         let at = ["coverage", "reading"];
-        let allowed = READINGS
+        let allowed = Reading::ALL
             .iter()
-            .map(|r| format!("\"{r}\""))
+            .map(|r| format!("\"{}\"", r.name()))
             .collect::<Vec<_>>()
             .join(", ");
         match (self.reading.as_str(), mission_parent) {
             ("ours", _) => Ok(()),
-            (other, None) if READINGS.contains(&other) => Ok(()),
-            (other, Some(name)) if READINGS.contains(&other) => Err(c.error_at(
+            (other, None) if Reading::from_name(other).is_some() => Ok(()),
+            (other, Some(name)) if Reading::from_name(other).is_some() => Err(c.error_at(
                 &at,
                 format!("\"{other}\" (robot {name} runs the mission)"),
                 "\"ours\" in a scenario whose parent runs the mission; the other readings only for grid planning (sweeps, `hetsim regress`)",

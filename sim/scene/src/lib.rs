@@ -27,6 +27,6 @@ pub use robot::{
 };
 pub use scenario::{
     BoxSpec, CommsSpec, CoverageSpec, IndoorSpec, MissionSpec, RobotSpec, ScenarioFile, Start,
-    VillageSpec, WorldKind, WorldSpec, READINGS,
+    VillageSpec, WorldKind, WorldSpec,
 };
 pub use source::{Source, SCHEMA_VERSION};

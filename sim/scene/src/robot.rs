@@ -9,7 +9,7 @@ use serde::{Deserialize, Serialize};
 mod slam;
 mod validate;
 
-pub use slam::SlamTuning;
+pub use hetsim_slam::stack::SlamTuning;
 
 /// A robot description.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]

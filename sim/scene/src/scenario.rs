@@ -1,7 +1,7 @@
 //! Scenario files (`scenarios/*.toml`): the world, the robots placed in it and their missions.
 
 use crate::check::Checker;
-pub use crate::coverage_spec::{CoverageSpec, READINGS};
+pub use crate::coverage_spec::CoverageSpec;
 use crate::SceneError;
 use serde::{Deserialize, Serialize};
 

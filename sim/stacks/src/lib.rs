@@ -107,7 +107,7 @@ pub fn build_stack(
                 _ => hetsim_slam::stack::SlamParams::ground(),
             };
             params.cooperative = !open_loop;
-            tune(&mut params, &robot.model.slam);
+            robot.model.slam.apply(&mut params);
             // The team's frame is the first sub-map of the scenario's first robot (seed
             // Section V: Dala's); every other robot starts in its own until an event links it.
             params.reference_robot = scenario.robots.first().map(|r| r.spec.name.clone());
@@ -125,37 +125,6 @@ pub fn build_stack(
             ))
         }
         None => pilot,
-    }
-}
-
-/// The robot file's `[slam]` values over the seed's.
-fn tune(params: &mut hetsim_slam::stack::SlamParams, t: &hetsim_scene::SlamTuning) {
-    if let Some(v) = t.sigma_px {
-        params.sigma_px = v;
-    }
-    if let Some(v) = t.max_landmarks {
-        params.max_landmarks = v as usize;
-    }
-    if let Some(v) = t.per_region {
-        params.per_region = v as usize;
-    }
-    if let Some(v) = t.lines {
-        params.lines = v;
-    }
-    if let Some(v) = t.min_line_px {
-        params.min_line_px = v;
-    }
-    if let Some(v) = t.match_gate_chi2 {
-        params.match_gate_chi2 = v;
-    }
-    if let Some(v) = t.vo_covariance_scale {
-        params.vo_covariance_scale = v;
-    }
-    if let Some(v) = t.edge_drift_translation {
-        params.edge_drift.translation = v;
-    }
-    if let Some(v) = t.edge_drift_rotation_deg_per_m {
-        params.edge_drift.rotation_deg_per_m = v;
     }
 }
 

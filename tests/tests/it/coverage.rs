@@ -299,11 +299,9 @@ fn up_to_four_children_map_faster_and_eight_take_longer_to_coordinate() {
     assert!(best > 1, "{runs:?}");
 }
 
-/// `[coverage] reading` takes the planner's readings by their names, and no others.
+/// Each reading's name gives the reading back: `[coverage] reading` is checked with these names.
 #[test]
-fn the_scenario_readings_are_the_planners() {
-    let names: Vec<&str> = Reading::ALL.iter().map(|r| r.name()).collect();
-    assert_eq!(names, hetsim_scene::READINGS.to_vec());
+fn each_reading_is_found_by_its_name() {
     for r in Reading::ALL {
         assert_eq!(Reading::from_name(r.name()), Some(r));
     }

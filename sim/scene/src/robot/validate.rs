@@ -104,7 +104,7 @@ impl RobotModel {
                 }
             }
         }
-        self.slam.validate(c)?;
+        slam::validate(&self.slam, c)?;
         let p = &self.pilot;
         c.range(
             &["pilot", "cruise_mps"],
