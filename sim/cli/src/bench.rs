@@ -311,7 +311,7 @@ pub fn vision(scenario: &Path) -> Result<Figures> {
         .robots
         .iter()
         .enumerate()
-        .find_map(|(i, r)| Some((i, hetsim_stacks::stereo_bench(r)?)))
+        .find_map(|(i, r)| Some((i, hetsim_scene::stereo_bench(r)?)))
         .with_context(|| {
             format!(
                 "{}: no robot with a stereo_camera to measure",

@@ -92,7 +92,7 @@ pub fn replay(args: &ReplayArgs<'_>) -> Result<hetsim_eval::RunFiles> {
             .iter()
             .find(|r| r.spec.name == *robot)
             .with_context(|| format!("--robot {robot}: not a robot of {}", path.display()))?;
-        let bench = hetsim_stacks::stereo_bench(r)
+        let bench = hetsim_scene::stereo_bench(r)
             .with_context(|| format!("--robot {robot}: its robot file has no stereo bench"))?;
         let k = bench.intrinsics;
         let spec = BenchSpec {

@@ -85,7 +85,7 @@ pub fn plan_scenario_with(
         .ok_or_else(|| EvalError::Plan("needs an indoor_grid world".into()))?
         .grid;
     let map = Map::from_grid(grid);
-    let mut params = hetsim_stacks::coverage_params(scenario);
+    let mut params = hetsim_scene::coverage_params(scenario);
     if let Some(n) = children {
         params.children = n;
     }

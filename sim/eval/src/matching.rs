@@ -87,7 +87,7 @@ struct View {
 
 fn view_of(scenario: &Scenario, robot: &str) -> Option<View> {
     let r = scenario.robots.iter().find(|r| r.spec.name == robot)?;
-    let b = hetsim_stacks::stereo_bench(r)?;
+    let b = hetsim_scene::stereo_bench(r)?;
     Some(View {
         body_from_camera: Pose::from_parts(
             b.body_from_mount.translation,

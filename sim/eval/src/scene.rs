@@ -39,6 +39,6 @@ pub fn camera_of(robot: &hetsim_scene::ResolvedRobot) -> Option<(Pose, CameraGeo
 
 /// The direction of mapping of the scenario's `[coverage]` table, radians from east.
 pub fn direction_rad(scenario: &Scenario) -> f64 {
-    let (x, y) = hetsim_stacks::coverage_params(scenario).direction.unit();
+    let (x, y) = hetsim_scene::coverage_params(scenario).direction.unit();
     y.atan2(x)
 }

@@ -287,7 +287,7 @@ impl TeamMetrics {
         let (mut pos, mut tracked, mut head, mut compass, mut est) =
             (Vec::new(), Vec::new(), Vec::new(), Vec::new(), Vec::new());
         let (mut in_view, mut distant) = (0, 0);
-        let r_los = hetsim_stacks::coverage_params(scenario).r_los_m;
+        let r_los = hetsim_scene::coverage_params(scenario).r_los_m;
         for d in &r.database {
             let Some(i) = index(&d.child) else { continue };
             let centre = grid.centre_of(d.vertex.0, d.vertex.1);

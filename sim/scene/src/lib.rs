@@ -10,6 +10,7 @@
 mod check;
 mod coverage_spec;
 mod error;
+mod given;
 mod load;
 mod robot;
 mod scenario;
@@ -18,6 +19,7 @@ pub mod world;
 
 pub use check::{field_name, Checker};
 pub use error::{FieldError, SceneError};
+pub use given::{coverage_params, stereo_bench, StereoBench};
 pub use load::{
     load_robot_model, load_scenario, load_scenario_text, LoadOptions, ResolvedRobot, Scenario,
 };

@@ -11,55 +11,14 @@
 //! | `coverage_child` | | [`hetsim_coverage::ChildStack`] |
 
 use hetsim_core::Streams;
-use hetsim_coverage::{CoverageParams, Direction, Reading, ViewRule};
 use hetsim_msgs::{Mission, RobotStack};
 use hetsim_pilot::{
     lawnmower, GroundPilot, GroundPilotParams, HeliPilot, HeliPilotParams, Steering,
 };
-use hetsim_scene::{DriveKind, MissionSpec, ResolvedRobot, Scenario, Sensor, SteeringKind};
-
-/// A robot's (first) stereo bench, as the robot file declares it.
-#[derive(Clone, Debug, PartialEq)]
-pub struct StereoBench {
-    /// The sensor's name (its cameras are `<name>/left` and `<name>/right`).
-    pub name: String,
-    /// The left camera's pinhole intrinsics (the right one's are the same).
-    pub intrinsics: hetsim_msgs::CameraGeometry,
-    /// Baseline, metres (the right camera sits at -baseline along the left's y).
-    pub baseline_m: f64,
-    /// The left camera's mount in the body frame (body axis convention, x along the view).
-    pub body_from_mount: hetsim_msgs::Pose,
-}
-
-/// The robot's first stereo bench, if it has one.
-pub fn stereo_bench(robot: &ResolvedRobot) -> Option<StereoBench> {
-    robot.model.sensors.iter().find_map(|s| match s {
-        Sensor::StereoCamera {
-            name,
-            width_px,
-            height_px,
-            hfov_deg,
-            intrinsics,
-            baseline_m,
-            mount,
-            ..
-        } => Some(StereoBench {
-            name: name.clone(),
-            intrinsics: hetsim_scene::camera_geometry(
-                *width_px,
-                *height_px,
-                *hfov_deg,
-                intrinsics.as_ref(),
-            ),
-            baseline_m: *baseline_m,
-            body_from_mount: hetsim_msgs::pose_from_xyz_rpy(
-                mount.xyz_m,
-                mount.rpy_deg.map(f64::to_radians),
-            ),
-        }),
-        _ => None,
-    })
-}
+use hetsim_scene::{
+    coverage_params, stereo_bench, DriveKind, MissionSpec, ResolvedRobot, Scenario, Sensor,
+    SteeringKind, StereoBench,
+};
 
 /// One stack per robot of the scenario, in scenario order; the SLAM stacks open loop (no
 /// events, no radio) when `open_loop`. Each stack's random seed comes from its own named
@@ -399,51 +358,4 @@ fn operator_start(scenario: &Scenario, robot: &ResolvedRobot) -> [f64; 3] {
         s.y + 0.05 * normal(),
         (s.yaw_deg + 2.0 * normal()).to_radians(),
     ]
-}
-
-/// Planning parameters from the scenario's `[coverage]` table and its robots.
-pub fn coverage_params(scenario: &Scenario) -> CoverageParams {
-    let spec = scenario.file.coverage.clone().unwrap_or_default();
-    // The parent is the robot with the laser, the children the robots with hats.
-    let radius = |role: fn(&hetsim_scene::RobotModel) -> bool, default: f64| {
-        scenario
-            .robots
-            .iter()
-            .find(|r| role(&r.model))
-            .map_or(default, |r| {
-                r.model.body.length_m.max(r.model.body.width_m) / 2.0
-            })
-    };
-    let direction = match spec.direction.as_str() {
-        "north" => Direction::North,
-        "west" => Direction::West,
-        "south" => Direction::South,
-        _ => Direction::East,
-    };
-    CoverageParams {
-        r_los_m: spec.r_los_m,
-        direction,
-        child_fov_deg: spec.child_fov_deg,
-        view_margin_deg: spec.view_margin_deg,
-        view_margin_m: spec.view_margin_m,
-        parent_radius_m: radius(hetsim_scene::RobotModel::has_laser, 0.225),
-        child_radius_m: radius(hetsim_scene::RobotModel::is_tracked_child, 0.06),
-        children: spec
-            .children
-            .unwrap_or_else(|| {
-                scenario
-                    .robots
-                    .iter()
-                    .filter(|r| r.model.is_tracked_child())
-                    .count()
-            })
-            .max(1),
-        f_factor: spec.f_factor,
-        views: match spec.views.as_str() {
-            "start_points" => ViewRule::StartPoints,
-            _ => ViewRule::EveryGrab,
-        },
-        // Checked when the scenario was loaded.
-        reading: Reading::from_name(&spec.reading).unwrap_or_default(),
-    }
 }

@@ -10,6 +10,8 @@
 //!   indicatif and anyhow in the binary);
 //! * one camera geometry type: only `hetsim-msgs` defines pinhole parameters, and the crate
 //!   that builds robot stacks reaches no renderer through its dependencies;
+//! * no code compares a robot's model to a name, and evaluation does not depend on
+//!   `hetsim-stacks`;
 //! * no crate's top-level modules form a cycle through `crate::` paths;
 //! * ARCHITECTURE.md's list of each crate's dependencies is the one `cargo metadata` gives.
 //!
@@ -135,6 +137,29 @@ fn the_engine_names_no_robot_model() {
             );
         }
     }
+}
+
+#[test]
+fn no_code_compares_robot_models_by_name_and_evaluation_calls_no_stacks() {
+    // Roles (a coverage parent, a child) come from what robot files declare (a laser, a hat),
+    // so a researcher's robot under another name plays them too.
+    for dir in ["sim", "robots"] {
+        for f in sources(&repo().join(dir)) {
+            let text = std::fs::read_to_string(&f).unwrap();
+            let code = text.split("#[cfg(test)]").next().unwrap();
+            for pattern in ["model == \"", "model != \""] {
+                assert!(
+                    !code.contains(pattern),
+                    "{} compares a robot model to a name ({pattern}...)",
+                    f.display()
+                );
+            }
+        }
+    }
+    // Evaluation judges a run from its outputs and the files; it never asks the crate that
+    // builds the robot software what that software was given.
+    let all = packages();
+    assert!(!all["hetsim-eval"].1.iter().any(|d| d == "hetsim-stacks"));
 }
 
 /// The engine's top-level modules: the loop's stages and state (`run`, `stages`), its

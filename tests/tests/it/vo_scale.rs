@@ -127,7 +127,7 @@ fn bench_of(scenario: &Scenario, name: &str) -> Bench {
         .iter()
         .find(|r| r.spec.name == name)
         .unwrap_or_else(|| panic!("the village has {name}"));
-    let b = hetsim_stacks::stereo_bench(robot).unwrap();
+    let b = hetsim_scene::stereo_bench(robot).unwrap();
     let k = b.intrinsics;
     Bench {
         camera: k.k,
