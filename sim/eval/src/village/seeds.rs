@@ -7,76 +7,19 @@
 //! interval should be at least 95 %.
 
 use super::{field, num, read_json};
+use crate::stats::MeanStd;
 use crate::EvalError;
 use serde_json::Value;
 use std::collections::BTreeMap;
 use std::fmt::Write;
 use std::path::{Path, PathBuf};
 
-/// The standard normal quantile (Acklam's rational approximation, relative error < 1.2e-9).
-fn normal_quantile(p: f64) -> f64 {
-    let a = [
-        -3.969683028665376e+01,
-        2.209460984245205e+02,
-        -2.759285104469687e+02,
-        1.383_577_518_672_69e2,
-        -3.066479806614716e+01,
-        2.506628277459239e+00,
-    ];
-    let b = [
-        -5.447609879822406e+01,
-        1.615858368580409e+02,
-        -1.556989798598866e+02,
-        6.680131188771972e+01,
-        -1.328068155288572e+01,
-    ];
-    let c = [
-        -7.784894002430293e-03,
-        -3.223964580411365e-01,
-        -2.400758277161838e+00,
-        -2.549732539343734e+00,
-        4.374664141464968e+00,
-        2.938163982698783e+00,
-    ];
-    let d = [
-        7.784695709041462e-03,
-        3.224671290700398e-01,
-        2.445134137142996e+00,
-        3.754408661907416e+00,
-    ];
-    let tail = |q: f64| {
-        (((((c[0] * q + c[1]) * q + c[2]) * q + c[3]) * q + c[4]) * q + c[5])
-            / ((((d[0] * q + d[1]) * q + d[2]) * q + d[3]) * q + 1.0)
-    };
-    if p < 0.02425 {
-        tail((-2.0 * p.ln()).sqrt())
-    } else if p > 1.0 - 0.02425 {
-        -tail((-2.0 * (1.0 - p).ln()).sqrt())
-    } else {
-        let q = p - 0.5;
-        let r = q * q;
-        (((((a[0] * r + a[1]) * r + a[2]) * r + a[3]) * r + a[4]) * r + a[5]) * q
-            / (((((b[0] * r + b[1]) * r + b[2]) * r + b[3]) * r + b[4]) * r + 1.0)
-    }
-}
-
-/// The chi-square quantile with `k` degrees of freedom (Wilson-Hilferty; within 1 % of the tables
-/// from 12 degrees of freedom up, as Monte Carlo tests over two runs or more use it).
+/// The chi-square quantile with `k` degrees of freedom (statrs' inverse CDF).
 pub fn chi2_quantile(p: f64, k: f64) -> f64 {
-    let h = 2.0 / (9.0 * k);
-    k * (1.0 - h + normal_quantile(p) * h.sqrt()).powi(3)
-}
-
-/// Mean and sample standard deviation.
-fn mean_std(v: &[f64]) -> (f64, f64) {
-    let n = v.len() as f64;
-    let m = v.iter().sum::<f64>() / n;
-    let s = if v.len() > 1 {
-        (v.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (n - 1.0)).sqrt()
-    } else {
-        f64::NAN
-    };
-    (m, s)
+    use statrs::distribution::{ChiSquared, ContinuousCDF};
+    ChiSquared::new(k)
+        .expect("positive degrees of freedom")
+        .inverse_cdf(p)
 }
 
 /// One run's figures that the seeds section reads.
@@ -163,7 +106,8 @@ pub fn section(dirs: &[PathBuf]) -> Result<(String, Files), EvalError> {
                 a.push(r.num(&format!("estimates.{kind}/{robot}.ate_m"))?);
                 u.push(r.num(&format!("estimates.{kind}/{robot}.ate_unaligned_m"))?);
             }
-            let ((am, asd), (um, usd)) = (mean_std(&a), mean_std(&u));
+            let (MeanStd { mean: am, std: asd }, MeanStd { mean: um, std: usd }) =
+                (MeanStd::sample(&a), MeanStd::sample(&u));
             means.push((am, um));
             let per: Vec<String> = a
                 .iter()
@@ -387,8 +331,9 @@ mod tests {
             (0.975, 12.0, 23.337),
         ] {
             let q = chi2_quantile(p, k);
+            // The tables give five significant digits.
             assert!(
-                (q / table - 1.0).abs() < 0.01,
+                (q / table - 1.0).abs() < 1e-4,
                 "chi2({p}, {k}) = {q}, table {table}"
             );
         }
@@ -441,11 +386,8 @@ mod tests {
             md.contains("- dala: aligned holds, unaligned holds"),
             "{md}"
         );
-        // The tables' 4.404 / 2 and 23.337 / 2; Wilson-Hilferty within 1 %.
-        assert!(
-            md.contains("within [2.20, 11.67]") || md.contains("within [2.19, 11.67]"),
-            "{md}"
-        );
+        // The tables' 4.4038 / 2 and 23.337 / 2.
+        assert!(md.contains("within [2.20, 11.67]"), "{md}");
         assert!(
             md.contains("| dala | 10 | 80.0 % | 10.0 % | 10.0 % |"),
             "{md}"
