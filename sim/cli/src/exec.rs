@@ -64,6 +64,9 @@ pub fn write_memory_trace(path: &Path, trace: &[(f64, f64)]) -> Result<()> {
     Ok(())
 }
 
+/// A `kB` line of /proc/self/status, in MiB. Hand-written on purpose: the `memory-stats`
+/// crate reports the current resident and virtual sizes but not the kernel's high-water mark
+/// (`VmHWM`), which the recorded peaks need, and both come from the same line format.
 fn status_mib(key: &str) -> Option<f64> {
     let status = std::fs::read_to_string("/proc/self/status").ok()?;
     let kb: f64 = status
