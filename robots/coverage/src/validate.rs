@@ -12,7 +12,7 @@ use crate::{CoverageParams, ViewRule};
 /// once; children never stand on the parent's vertex; and the imaged vertices are exactly
 /// V \ V_p minus the reported uncoverable and unreached ones. Returns the first violation.
 pub fn validate(map: &Map, params: &CoverageParams, plan: &Plan) -> Result<(), Violation> {
-    check(map, params, plan).map_err(Violation)
+    check(map, params, plan)
 }
 
 /// The first invariant a plan breaks, with the timestep and the robots involved.
@@ -20,7 +20,7 @@ pub fn validate(map: &Map, params: &CoverageParams, plan: &Plan) -> Result<(), V
 #[error("{0}")]
 pub struct Violation(pub String);
 
-fn check(map: &Map, params: &CoverageParams, plan: &Plan) -> Result<(), String> {
+fn check(map: &Map, params: &CoverageParams, plan: &Plan) -> Result<(), Violation> {
     let vis = Visibility::compute(map, params);
     let mut prev = plan.start.clone();
     let mut grabbed = vec![false; map.len()];
@@ -34,64 +34,69 @@ fn check(map: &Map, params: &CoverageParams, plan: &Plan) -> Result<(), String> 
     for (t, frame) in plan.frames.iter().enumerate() {
         let pos = &frame.positions;
         if pos.len() != prev.len() {
-            return Err(format!("timestep {t}: robot count changed"));
+            return Err(Violation(format!("timestep {t}: robot count changed")));
         }
         for (k, (&a, &b)) in prev.iter().zip(pos).enumerate() {
             if a != b && !map.adjacent(a, b) {
-                return Err(format!(
+                return Err(Violation(format!(
                     "timestep {t} ({:?}, stage {}): robot {k} jumped from {:?} to {:?}",
                     frame.phase,
                     frame.stage,
                     map.cell(a),
                     map.cell(b)
-                ));
+                )));
             }
             if !map.is_free(b) {
-                return Err(format!(
+                return Err(Violation(format!(
                     "timestep {t}: robot {k} on an occupied cell {:?}",
                     map.cell(b)
-                ));
+                )));
             }
         }
         for i in 0..pos.len() {
             for j in i + 1..pos.len() {
                 if pos[i] == pos[j] {
-                    return Err(format!(
+                    return Err(Violation(format!(
                         "timestep {t}: robots {i} and {j} share {:?}",
                         map.cell(pos[i])
-                    ));
+                    )));
                 }
                 if pos[i] == prev[j] && pos[j] == prev[i] {
-                    return Err(format!("timestep {t}: robots {i} and {j} swapped places"));
+                    return Err(Violation(format!(
+                        "timestep {t}: robots {i} and {j} swapped places"
+                    )));
                 }
             }
         }
         for &(child, v) in &frame.grabs {
             let robot = child + 1;
             if pos[robot] != v {
-                return Err(format!(
+                return Err(Violation(format!(
                     "timestep {t}: child {child} grabbed at {:?} standing on {:?}",
                     map.cell(v),
                     map.cell(pos[robot])
-                ));
+                )));
             }
             if grabbed[v] {
-                return Err(format!("timestep {t}: {:?} grabbed twice", map.cell(v)));
+                return Err(Violation(format!(
+                    "timestep {t}: {:?} grabbed twice",
+                    map.cell(v)
+                )));
             }
             grabbed[v] = true;
             if vis.los_free[pos[0]].binary_search(&v).is_err() {
-                return Err(format!(
+                return Err(Violation(format!(
                     "timestep {t}: {:?} is not in LOS_free of the parent at {:?}",
                     map.cell(v),
                     map.cell(pos[0])
-                ));
+                )));
             }
             for (k, &u) in pos.iter().enumerate() {
                 if params.views == ViewRule::EveryGrab
                     && k != robot
                     && in_view(map, params, v, u, radius(k))
                 {
-                    return Err(format!("timestep {t}: robot {k} at {:?} is in the view of child {child} grabbing at {:?}", map.cell(u), map.cell(v)));
+                    return Err(Violation(format!("timestep {t}: robot {k} at {:?} is in the view of child {child} grabbing at {:?}", map.cell(u), map.cell(v))));
                 }
             }
         }
@@ -111,11 +116,11 @@ fn check(map: &Map, params: &CoverageParams, plan: &Plan) -> Result<(), String> 
             .map(|&v| map.cell(v))
             .take(5)
             .collect();
-        return Err(format!(
+        return Err(Violation(format!(
             "imaged {} vertices, expected {}; missing e.g. {missing:?}",
             got.len(),
             expected.len()
-        ));
+        )));
     }
     let mut from_sets: Vec<Vertex> = plan
         .child_sets
@@ -126,7 +131,9 @@ fn check(map: &Map, params: &CoverageParams, plan: &Plan) -> Result<(), String> 
         .collect();
     from_sets.sort_unstable();
     if from_sets != got {
-        return Err("the child sets C(t) do not match the grabs".to_string());
+        return Err(Violation(
+            "the child sets C(t) do not match the grabs".to_string(),
+        ));
     }
     Ok(())
 }

@@ -31,7 +31,7 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 mod axes;
-pub use axes::apply_settings;
+pub use axes::{apply_settings, SettingError};
 mod runs;
 mod summary;
 pub use runs::{

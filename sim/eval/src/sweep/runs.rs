@@ -50,7 +50,7 @@ pub fn metrics_of_run(sweep: &Sweep, run: &SweepRun, dir: &Path) -> Result<RunRe
         .file
         .metrics
         .iter()
-        .map(|path| metric_at(&metrics, path).map_err(|m| sweep.run_error(run, m)))
+        .map(|path| metric_at(&metrics, path).map_err(|m| sweep.run_error(run, m.to_string())))
         .collect::<Result<_, _>>()?;
     Ok(RunResult {
         digest: Some(digest),
@@ -58,9 +58,42 @@ pub fn metrics_of_run(sweep: &Sweep, run: &SweepRun, dir: &Path) -> Result<RunRe
     })
 }
 
+/// Why a dotted path into `metrics.json` gives no number.
+#[derive(Debug, thiserror::Error)]
+pub enum MetricPathError {
+    /// A key or index the document does not have at that point.
+    #[error("metric {path:?}: no {key:?} in {here} ({offered})")]
+    Missing {
+        /// The dotted path asked for.
+        path: String,
+        /// The key not found.
+        key: String,
+        /// Where it was looked for (`metrics.json` or the path walked so far).
+        here: String,
+        /// What is there instead.
+        offered: String,
+    },
+    /// The path ends at a number JSON holds but f64 cannot.
+    #[error("metric {path:?}: {number} is not a number")]
+    NotF64 {
+        /// The dotted path.
+        path: String,
+        /// The number as written.
+        number: String,
+    },
+    /// The path ends at a table, a list or text.
+    #[error("metric {path:?} is {found}, not a number")]
+    NotANumber {
+        /// The dotted path.
+        path: String,
+        /// "a table", "a list" or "text".
+        found: &'static str,
+    },
+}
+
 /// The number at a dotted path of a JSON document; `null` reads as NaN (a figure the run
 /// does not have, such as the error after an event that never fired).
-fn metric_at(doc: &serde_json::Value, path: &str) -> Result<f64, String> {
+fn metric_at(doc: &serde_json::Value, path: &str) -> Result<f64, MetricPathError> {
     let mut at = doc;
     let mut walked: Vec<&str> = Vec::new();
     for key in path.split('.') {
@@ -85,24 +118,30 @@ fn metric_at(doc: &serde_json::Value, path: &str) -> Result<f64, String> {
                 }
                 other => format!("{here} is {other}, not a table"),
             };
-            format!("metric {path:?}: no {key:?} in {here} ({offered})")
+            MetricPathError::Missing {
+                path: path.to_string(),
+                key: key.to_string(),
+                here,
+                offered,
+            }
         })?;
         walked.push(key);
     }
     match at {
-        serde_json::Value::Number(n) => n
-            .as_f64()
-            .ok_or_else(|| format!("metric {path:?}: {n} is not a number")),
+        serde_json::Value::Number(n) => n.as_f64().ok_or_else(|| MetricPathError::NotF64 {
+            path: path.to_string(),
+            number: n.to_string(),
+        }),
         serde_json::Value::Bool(b) => Ok(if *b { 1.0 } else { 0.0 }),
         serde_json::Value::Null => Ok(f64::NAN),
-        other => Err(format!(
-            "metric {path:?} is {}, not a number",
-            match other {
+        other => Err(MetricPathError::NotANumber {
+            path: path.to_string(),
+            found: match other {
                 serde_json::Value::Object(_) => "a table",
                 serde_json::Value::Array(_) => "a list",
                 _ => "text",
-            }
-        )),
+            },
+        }),
     }
 }
 
