@@ -1,0 +1,60 @@
+//! A parent's child tracker (seed 002's hat tracking, emulated): the floor position of every
+//! tracked robot within range and in sight, with an error of random direction and a normally
+//! distributed size, in the parent's heading frame.
+
+use super::{At, Model};
+use hetsim_core::SimRng;
+use hetsim_msgs::{yaw_of, ChildTracks, SensorMsg, Track};
+use rand::RngExt;
+use rand_distr::{Distribution, Normal};
+
+pub(crate) struct ChildTracker {
+    pub range_m: f64,
+    pub error_mean_m: f64,
+    pub error_std_m: f64,
+    /// The robot model it follows, as the robot file declares.
+    pub tracks_model: String,
+}
+
+impl Model for ChildTracker {
+    fn measure(&mut self, at: &At, rng: &mut SimRng) -> Vec<SensorMsg> {
+        let origin = at.world_from_sensor.translation.vector;
+        let team = at.team;
+        let mut tracks = Vec::new();
+        let error = Normal::new(self.error_mean_m, self.error_std_m).expect("validated std >= 0");
+        for other in 0..team.names.len() {
+            if other == at.robot || team.models[other] != self.tracks_model {
+                continue;
+            }
+            let p = at.physics.pose(other).translation.vector;
+            let hat = [p.x, p.y, p.z + team.heights[other]];
+            let horizontal = (hat[0] - origin.x).hypot(hat[1] - origin.y);
+            if horizontal > self.range_m
+                || !at
+                    .physics
+                    .clear_line([origin.x, origin.y, origin.z], hat, &[at.robot, other])
+            {
+                continue;
+            }
+            let magnitude = error.sample(rng).abs();
+            let angle = rng.random_range(0.0..std::f64::consts::TAU);
+            // The measured floor position, in the parent's body frame (its heading only: the
+            // floor position of a child, however the body tilts).
+            let here = at.world_from_body.translation.vector;
+            let (dx, dy) = (
+                p.x + magnitude * angle.cos() - here.x,
+                p.y + magnitude * angle.sin() - here.y,
+            );
+            let (sin, cos) = yaw_of(&at.world_from_body).sin_cos();
+            tracks.push(Track {
+                child: team.names[other].clone(),
+                position_m: [cos * dx + sin * dy, -sin * dx + cos * dy],
+            });
+        }
+        vec![SensorMsg::ChildTracks(ChildTracks {
+            stamp_ns: at.stamp_ns,
+            sensor: at.sensor.clone(),
+            tracks,
+        })]
+    }
+}
