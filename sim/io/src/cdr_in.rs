@@ -43,6 +43,78 @@ const SENSOR_SCHEMAS: [&str; 10] = [
     "hetsim_msgs/msg/Comms",
 ];
 
+/// Why a recorded channel or message cannot be replayed.
+#[derive(Debug, thiserror::Error)]
+pub enum CdrError {
+    /// Not ROS 2's encodings.
+    #[error("schema encoding \"{schema_encoding}\", message encoding \"{message_encoding}\": hetsim replays ROS 2 recordings (ros2msg schemas, cdr messages), the default of hetsim run --record")]
+    Encoding {
+        /// The channel's schema encoding.
+        schema_encoding: String,
+        /// The channel's message encoding.
+        message_encoding: String,
+    },
+    /// A topic not of the form hetsim records.
+    #[error("not a /<robot>/<sensor> topic hetsim records")]
+    Topic,
+    /// A schema on a channel hetsim does not record (`known` lists those it does).
+    #[error("schema \"{schema}\" is not one hetsim replays{known}")]
+    Schema {
+        /// The schema's name.
+        schema: String,
+        /// ` (known: ...)` where the channel is being opened, empty for a message.
+        known: String,
+    },
+    /// A command of an unknown kind.
+    #[error("command kind \"{0}\": one of wheels, helicopter, stop")]
+    CommandKind(String),
+    /// A message without CDR's encapsulation header.
+    #[error(
+        "not CDR: its encapsulation header is {0:02x?}, expected 00 01 (little-endian) or 00 00"
+    )]
+    NotCdr(Vec<u8>),
+    /// A message that decodes from fewer bytes than it has.
+    #[error("CDR decodes from {used} of its {len} bytes (a message of another layout?)")]
+    Trailing {
+        /// Bytes decoded.
+        used: usize,
+        /// Bytes in the message.
+        len: usize,
+    },
+    /// A message CDR cannot decode.
+    #[error("CDR does not decode: {0}")]
+    Decode(String),
+    /// A stamp before 0 or with nanoseconds of a second or more.
+    #[error("stamp {sec} s {nanosec} ns: a time from 0 on with nanoseconds below 1e9")]
+    Stamp {
+        /// Seconds.
+        sec: i32,
+        /// Nanoseconds.
+        nanosec: u32,
+    },
+    /// An image encoding hetsim does not read.
+    #[error("image encoding \"{0}\": hetsim reads rgb8 and mono8")]
+    ImageEncoding(String),
+    /// Padded image rows.
+    #[error("image step {step} for width {width} in {encoding}: hetsim reads unpadded rows")]
+    ImageStep {
+        /// Bytes per row.
+        step: u32,
+        /// Pixels per row.
+        width: u32,
+        /// Its encoding.
+        encoding: String,
+    },
+    /// A radio delivery on another robot's topic.
+    #[error("a radio delivery to \"{to}\" on {robot}'s topic")]
+    Delivery {
+        /// The addressee.
+        to: String,
+        /// The topic's robot.
+        robot: String,
+    },
+}
+
 /// A decoded message.
 pub enum Decoded {
     /// Something replay does not feed.
@@ -58,7 +130,7 @@ impl Channel {
         schema: &str,
         schema_encoding: &str,
         message_encoding: &str,
-    ) -> Result<Self, String> {
+    ) -> Result<Self, CdrError> {
         let channel = |kind| {
             Ok(Self {
                 topic: topic.to_string(),
@@ -69,12 +141,13 @@ impl Channel {
             return channel(Kind::Skip);
         }
         if schema_encoding != "ros2msg" || message_encoding != "cdr" {
-            return Err(format!(
-                "schema encoding \"{schema_encoding}\", message encoding \"{message_encoding}\": hetsim replays ROS 2 recordings (ros2msg schemas, cdr messages), the default of hetsim run --record"
-            ));
+            return Err(CdrError::Encoding {
+                schema_encoding: schema_encoding.to_string(),
+                message_encoding: message_encoding.to_string(),
+            });
         }
         let Some((robot, sensor)) = topic.strip_prefix('/').and_then(|t| t.split_once('/')) else {
-            return Err("not a /<robot>/<sensor> topic hetsim records".into());
+            return Err(CdrError::Topic);
         };
         let (robot, sensor) = (robot.to_string(), sensor.to_string());
         match (sensor.as_str(), schema) {
@@ -89,16 +162,19 @@ impl Channel {
                     };
                     channel(Kind::Sensor(robot, sensor, s))
                 }
-                None => Err(format!(
-                    "schema \"{schema}\" is not one hetsim replays (known: geometry_msgs/msg/PoseStamped on /<robot>/truth, hetsim_msgs/msg/Command on /<robot>/cmd, {})",
-                    SENSOR_SCHEMAS.join(", ")
-                )),
+                None => Err(CdrError::Schema {
+                    schema: schema.to_string(),
+                    known: format!(
+                        " (known: geometry_msgs/msg/PoseStamped on /<robot>/truth, hetsim_msgs/msg/Command on /<robot>/cmd, {})",
+                        SENSOR_SCHEMAS.join(", ")
+                    ),
+                }),
             },
         }
     }
 
     /// Decodes one message of this channel.
-    pub fn decode(&self, data: &[u8]) -> Result<Decoded, String> {
+    pub fn decode(&self, data: &[u8]) -> Result<Decoded, CdrError> {
         let event = match &self.kind {
             Kind::Skip => return Ok(Decoded::Skip),
             Kind::Truth(robot) => {
@@ -123,11 +199,7 @@ impl Channel {
                         climb_rate_mps: m.climb_rate_mps,
                     },
                     "stop" => Command::Stop,
-                    other => {
-                        return Err(format!(
-                            "command kind \"{other}\": one of wheels, helicopter, stop"
-                        ))
-                    }
+                    other => return Err(CdrError::CommandKind(other.to_string())),
                 };
                 Event::Command {
                     robot: robot.clone(),
@@ -148,7 +220,7 @@ impl Channel {
 /// A CDR message (4-byte encapsulation header, then the data). Decoded with RustDDS's
 /// `cdr-encoding`, which checks every length against the bytes left before it allocates, so
 /// a corrupt length cannot make it reserve gigabytes.
-fn cdr<'de, T: Deserialize<'de>>(data: &'de [u8]) -> Result<T, String> {
+fn cdr<'de, T: Deserialize<'de>>(data: &'de [u8]) -> Result<T, CdrError> {
     let (decoded, len) = match data {
         [0, 1, _, _, rest @ ..] => (
             cdr_encoding::from_bytes::<T, byteorder::LittleEndian>(rest),
@@ -158,28 +230,21 @@ fn cdr<'de, T: Deserialize<'de>>(data: &'de [u8]) -> Result<T, String> {
             cdr_encoding::from_bytes::<T, byteorder::BigEndian>(rest),
             rest.len(),
         ),
-        _ => {
-            return Err(format!(
-            "not CDR: its encapsulation header is {:02x?}, expected 00 01 (little-endian) or 00 00",
-            &data[..data.len().min(4)]
-        ))
-        }
+        _ => return Err(CdrError::NotCdr(data[..data.len().min(4)].to_vec())),
     };
     match decoded {
         Ok((value, used)) if used == len => Ok(value),
-        Ok((_, used)) => Err(format!(
-            "CDR decodes from {used} of its {len} bytes (a message of another layout?)"
-        )),
-        Err(e) => Err(format!("CDR does not decode: {e}")),
+        Ok((_, used)) => Err(CdrError::Trailing { used, len }),
+        Err(e) => Err(CdrError::Decode(e.to_string())),
     }
 }
 
-fn ns(t: &Time) -> Result<u64, String> {
+fn ns(t: &Time) -> Result<u64, CdrError> {
     if t.sec < 0 || t.nanosec >= 1_000_000_000 {
-        return Err(format!(
-            "stamp {} s {} ns: a time from 0 on with nanoseconds below 1e9",
-            t.sec, t.nanosec
-        ));
+        return Err(CdrError::Stamp {
+            sec: t.sec,
+            nanosec: t.nanosec,
+        });
     }
     Ok(t.sec as u64 * 1_000_000_000 + t.nanosec as u64)
 }
@@ -198,22 +263,19 @@ fn pose(p: &Pose) -> hetsim_msgs::Pose {
     )
 }
 
-fn sensor_msg(robot: &str, sensor: &str, schema: &str, data: &[u8]) -> Result<SensorMsg, String> {
+fn sensor_msg(robot: &str, sensor: &str, schema: &str, data: &[u8]) -> Result<SensorMsg, CdrError> {
     let sensor = sensor.to_string();
     Ok(match schema {
         "sensor_msgs/msg/Image" => {
             let m: ImageIn = cdr(data)?;
-            let encoding = PixelEncoding::from_ros_name(&m.encoding).ok_or_else(|| {
-                format!(
-                    "image encoding \"{}\": hetsim reads rgb8 and mono8",
-                    m.encoding
-                )
-            })?;
+            let encoding = PixelEncoding::from_ros_name(&m.encoding)
+                .ok_or_else(|| CdrError::ImageEncoding(m.encoding.clone()))?;
             if m.step != m.width.saturating_mul(encoding.channels()) {
-                return Err(format!(
-                    "image step {} for width {} in {}: hetsim reads unpadded rows",
-                    m.step, m.width, m.encoding
-                ));
+                return Err(CdrError::ImageStep {
+                    step: m.step,
+                    width: m.width,
+                    encoding: m.encoding.clone(),
+                });
             }
             SensorMsg::Image(Image {
                 stamp_ns: ns(&m.header.stamp)?,
@@ -312,10 +374,10 @@ fn sensor_msg(robot: &str, sensor: &str, schema: &str, data: &[u8]) -> Result<Se
         "hetsim_msgs/msg/Comms" => {
             let m: CommsIn = cdr(data)?;
             if m.to != robot {
-                return Err(format!(
-                    "a radio delivery to \"{}\" on {robot}'s topic",
-                    m.to
-                ));
+                return Err(CdrError::Delivery {
+                    to: m.to.clone(),
+                    robot: robot.to_string(),
+                });
             }
             SensorMsg::Comms(Delivered {
                 from: m.from,
@@ -325,7 +387,12 @@ fn sensor_msg(robot: &str, sensor: &str, schema: &str, data: &[u8]) -> Result<Se
                 payload: m.payload.into_vec(),
             })
         }
-        other => return Err(format!("schema \"{other}\" is not one hetsim replays")),
+        other => {
+            return Err(CdrError::Schema {
+                schema: other.to_string(),
+                known: String::new(),
+            })
+        }
     })
 }
 

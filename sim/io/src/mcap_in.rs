@@ -60,13 +60,79 @@ pub struct McapRecording {
     crc: crc32fast::Hasher,
 }
 
+/// Why the framing of a recording's records does not hold.
+#[derive(Debug, thiserror::Error)]
+pub enum FrameError {
+    /// A record's header runs past the end of the data or the file.
+    #[error("a record starts at byte {at} but the {what} ends at byte {end} (truncated?)")]
+    Truncated {
+        /// Where the record starts.
+        at: u64,
+        /// "data" (a chunk's records) or "file".
+        what: &'static str,
+        /// Where that ends.
+        end: u64,
+    },
+    /// A record's length runs past the end of the data or the file.
+    #[error("the record at byte {at} (opcode {op:#04x}) claims {len} bytes, but the {what} ends at byte {end} (truncated?)")]
+    Overrun {
+        /// Where the record starts.
+        at: u64,
+        /// Its opcode.
+        op: u8,
+        /// The length it claims.
+        len: u64,
+        /// "data" or "file".
+        what: &'static str,
+        /// Where that ends.
+        end: u64,
+    },
+    /// A record larger than hetsim reads at once.
+    #[error("the record at byte {at} claims {len} bytes, more than the {MAX_CHUNK_BYTES} hetsim reads at once (corrupt?)")]
+    TooLarge {
+        /// Where the record starts.
+        at: u64,
+        /// The length it claims.
+        len: u64,
+    },
+    /// The file could not be read there.
+    #[error("reading byte {at}: {source}")]
+    Read {
+        /// Where.
+        at: u64,
+        /// Why.
+        #[source]
+        source: std::io::Error,
+    },
+}
+
+/// Why a recording's `hetsim.run` metadata does not describe a run.
+#[derive(Debug, thiserror::Error)]
+pub enum MetadataError {
+    /// No such record.
+    #[error("no \"{RUN_METADATA}\" metadata record")]
+    Missing,
+    /// A key the run needs is absent.
+    #[error("the \"{RUN_METADATA}\" metadata has no \"{0}\"")]
+    NoKey(String),
+    /// A value that is not the number it must be.
+    #[error("\"{RUN_METADATA}\" metadata \"{key}\": {why}")]
+    NotANumber {
+        /// The key.
+        key: String,
+        /// The parser's word.
+        why: String,
+    },
+}
+
 /// One framed record in a buffer: opcode, body, and the offset after it.
-fn frame(buf: &[u8], at: usize) -> Result<(u8, &[u8], usize), String> {
+fn frame(buf: &[u8], at: usize) -> Result<(u8, &[u8], usize), FrameError> {
     if buf.len() < at + 9 {
-        return Err(format!(
-            "a record starts at byte {at} but the data ends at byte {} (truncated?)",
-            buf.len()
-        ));
+        return Err(FrameError::Truncated {
+            at: at as u64,
+            what: "data",
+            end: buf.len() as u64,
+        });
     }
     let op = buf[at];
     let len = u64::from_le_bytes(buf[at + 1..at + 9].try_into().expect("8 bytes"));
@@ -74,45 +140,51 @@ fn frame(buf: &[u8], at: usize) -> Result<(u8, &[u8], usize), String> {
         .checked_add(len)
         .filter(|e| *e <= buf.len() as u64);
     let Some(end) = end else {
-        return Err(format!(
-            "the record at byte {at} (opcode {op:#04x}) claims {len} bytes, but the data ends at byte {} (truncated?)",
-            buf.len()
-        ));
+        return Err(FrameError::Overrun {
+            at: at as u64,
+            op,
+            len,
+            what: "data",
+            end: buf.len() as u64,
+        });
     };
     Ok((op, &buf[at + 9..end as usize], end as usize))
 }
 
 /// The opcode and body length of the top-level record at `at`, checked against the file's
 /// length.
-fn header_at(file: &std::fs::File, len: u64, at: u64) -> Result<(u8, u64), String> {
+fn header_at(file: &std::fs::File, len: u64, at: u64) -> Result<(u8, u64), FrameError> {
     let mut head = [0u8; 9];
     if at + 9 > len {
-        return Err(format!(
-            "a record starts at byte {at} but the file ends at byte {len} (truncated?)"
-        ));
+        return Err(FrameError::Truncated {
+            at,
+            what: "file",
+            end: len,
+        });
     }
     file.read_exact_at(&mut head, at)
-        .map_err(|e| format!("reading byte {at}: {e}"))?;
+        .map_err(|source| FrameError::Read { at, source })?;
     let body = u64::from_le_bytes(head[1..9].try_into().expect("8 bytes"));
     if (at + 9).checked_add(body).is_none_or(|end| end > len) {
-        return Err(format!(
-            "the record at byte {at} (opcode {:#04x}) claims {body} bytes, but the file ends at byte {len} (truncated?)",
-            head[0]
-        ));
+        return Err(FrameError::Overrun {
+            at,
+            op: head[0],
+            len: body,
+            what: "file",
+            end: len,
+        });
     }
     Ok((head[0], body))
 }
 
 /// The body of the record at `at` whose length is `body`.
-fn body_at(file: &std::fs::File, at: u64, body: u64) -> Result<Vec<u8>, String> {
+fn body_at(file: &std::fs::File, at: u64, body: u64) -> Result<Vec<u8>, FrameError> {
     if body > MAX_CHUNK_BYTES {
-        return Err(format!(
-            "the record at byte {at} claims {body} bytes, more than the {MAX_CHUNK_BYTES} hetsim reads at once (corrupt?)"
-        ));
+        return Err(FrameError::TooLarge { at, len: body });
     }
     let mut buf = vec![0u8; body as usize];
     file.read_exact_at(&mut buf, at + 9)
-        .map_err(|e| format!("reading byte {}: {e}", at + 9))?;
+        .map_err(|source| FrameError::Read { at: at + 9, source })?;
     Ok(buf)
 }
 
@@ -148,10 +220,10 @@ impl McapRecording {
         let mut data_crc = 0;
         let mut footer = false;
         while at < len {
-            let (op, body) = header_at(&file, len, at).map_err(|w| bad(at, w))?;
+            let (op, body) = header_at(&file, len, at).map_err(|w| bad(at, w.to_string()))?;
             match op {
                 mcap::records::op::METADATA => {
-                    let bytes = body_at(&file, at, body).map_err(|w| bad(at, w))?;
+                    let bytes = body_at(&file, at, body).map_err(|w| bad(at, w.to_string()))?;
                     if let Record::Metadata(m) =
                         mcap::parse_record(op, &bytes).map_err(|e| bad(at, e.to_string()))?
                     {
@@ -159,7 +231,7 @@ impl McapRecording {
                     }
                 }
                 mcap::records::op::DATA_END if data_end.is_none() => {
-                    let bytes = body_at(&file, at, body).map_err(|w| bad(at, w))?;
+                    let bytes = body_at(&file, at, body).map_err(|w| bad(at, w.to_string()))?;
                     if let Record::DataEnd(d) =
                         mcap::parse_record(op, &bytes).map_err(|e| bad(at, e.to_string()))?
                     {
@@ -276,10 +348,11 @@ impl McapRecording {
                 return Ok(None);
             }
             let at = self.at;
-            let (op, len) = header_at(&self.file, self.len, at).map_err(|w| self.corrupt(at, w))?;
+            let (op, len) =
+                header_at(&self.file, self.len, at).map_err(|w| self.corrupt(at, w.to_string()))?;
             self.at = at + 9 + len;
             // Every record's bytes go into the data section's CRC, read or skipped.
-            let body = body_at(&self.file, at, len).map_err(|w| self.corrupt(at, w))?;
+            let body = body_at(&self.file, at, len).map_err(|w| self.corrupt(at, w.to_string()))?;
             self.crc.update(&[op]);
             self.crc.update(&len.to_le_bytes());
             self.crc.update(&body);
@@ -449,28 +522,22 @@ impl McapRecording {
 }
 
 /// The run a recording describes, from its `hetsim.run` metadata record.
-fn run_description(m: Option<&BTreeMap<String, String>>) -> Result<RunDescription, String> {
-    let m = m.ok_or_else(|| format!("no \"{RUN_METADATA}\" metadata record"))?;
-    let get = |k: &str| {
-        m.get(k)
-            .ok_or_else(|| format!("the \"{RUN_METADATA}\" metadata has no \"{k}\""))
+fn run_description(m: Option<&BTreeMap<String, String>>) -> Result<RunDescription, MetadataError> {
+    let m = m.ok_or(MetadataError::Missing)?;
+    let get = |k: &str| m.get(k).ok_or_else(|| MetadataError::NoKey(k.to_string()));
+    let bad = |k: &str, e: &dyn std::fmt::Display| MetadataError::NotANumber {
+        key: k.to_string(),
+        why: e.to_string(),
     };
-    let number = |k: &str| -> Result<f64, String> {
-        get(k)?
-            .parse::<f64>()
-            .map_err(|e| format!("\"{RUN_METADATA}\" metadata \"{k}\": {e}"))
-    };
+    let number =
+        |k: &str| -> Result<f64, MetadataError> { get(k)?.parse::<f64>().map_err(|e| bad(k, &e)) };
     Ok(RunDescription {
-        dt_ns: get("dt_ns")?
-            .parse()
-            .map_err(|e| format!("\"{RUN_METADATA}\" metadata \"dt_ns\": {e}"))?,
+        dt_ns: get("dt_ns")?.parse().map_err(|e| bad("dt_ns", &e))?,
         open_loop: get("open_loop")? == "true",
         rendered: get("rendered")? == "true",
         scenario_path: PathBuf::from(get("scenario_path")?),
         scenario_text: get("scenario")?.clone(),
-        seed: get("seed")?
-            .parse()
-            .map_err(|e| format!("\"{RUN_METADATA}\" metadata \"seed\": {e}"))?,
+        seed: get("seed")?.parse().map_err(|e| bad("seed", &e))?,
         duration_secs: number("duration_secs")?,
         robot_files: m
             .iter()

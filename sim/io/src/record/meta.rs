@@ -61,9 +61,16 @@ impl Recorder {
     /// The outcomes written by [`Recorder::outcome`], or which key is missing or bad.
     pub fn read_outcome(
         metadata: &BTreeMap<String, String>,
-    ) -> Result<(u64, Vec<RecordedOutcome>), String> {
-        let get = |key: &str| metadata.get(key).ok_or_else(|| format!("no \"{key}\""));
-        let bad = |key: &str, value: &str| format!("\"{key}\" = \"{value}\" is not a number");
+    ) -> Result<(u64, Vec<RecordedOutcome>), OutcomeError> {
+        let get = |key: &str| {
+            metadata
+                .get(key)
+                .ok_or_else(|| OutcomeError::Missing(key.to_string()))
+        };
+        let bad = |key: &str, value: &str| OutcomeError::NotANumber {
+            key: key.to_string(),
+            value: value.to_string(),
+        };
         let ticks = get("ticks")?;
         let ticks = ticks.parse().map_err(|_| bad("ticks", ticks))?;
         let mut robots = Vec::new();
@@ -97,4 +104,20 @@ impl Recorder {
                 source,
             })
     }
+}
+
+/// Why a recording's outcome metadata cannot be read back.
+#[derive(Debug, thiserror::Error)]
+pub enum OutcomeError {
+    /// A key the outcome needs is absent.
+    #[error("no \"{0}\"")]
+    Missing(String),
+    /// A value that is not a number.
+    #[error("\"{key}\" = \"{value}\" is not a number")]
+    NotANumber {
+        /// The key.
+        key: String,
+        /// Its value.
+        value: String,
+    },
 }
