@@ -12,6 +12,7 @@
 //!   that builds robot stacks reaches no renderer through its dependencies;
 //! * no code compares a robot's model to a name, and evaluation does not depend on
 //!   `hetsim-stacks`;
+//! * no library function returns a `String` error;
 //! * no crate's top-level modules form a cycle through `crate::` paths;
 //! * ARCHITECTURE.md's list of each crate's dependencies is the one `cargo metadata` gives.
 //!
@@ -160,6 +161,32 @@ fn no_code_compares_robot_models_by_name_and_evaluation_calls_no_stacks() {
     // builds the robot software what that software was given.
     let all = packages();
     assert!(!all["hetsim-eval"].1.iter().any(|d| d == "hetsim-stacks"));
+}
+
+#[test]
+fn no_library_function_returns_a_string_error() {
+    // Errors are typed (thiserror enums with their fields), so a caller can match on them;
+    // only the binary (anyhow) turns them into text.
+    for dir in ["sim", "robots"] {
+        for f in sources(&repo().join(dir)) {
+            if f.starts_with(repo().join("sim/cli")) {
+                continue;
+            }
+            let text = std::fs::read_to_string(&f).unwrap();
+            let code = text.split("#[cfg(test)]").next().unwrap();
+            let flat: String = code.split_whitespace().collect::<Vec<_>>().join(" ");
+            for (i, _) in flat.match_indices("Result<") {
+                let rest = &flat[i..];
+                let end = rest.find('{').unwrap_or(rest.len()).min(200);
+                assert!(
+                    !rest[..end].contains(", String>"),
+                    "{} returns a String error: {}",
+                    f.display(),
+                    &rest[..end]
+                );
+            }
+        }
+    }
 }
 
 /// The engine's top-level modules: the loop's stages and state (`run`, `stages`), its
