@@ -176,17 +176,34 @@ fn no_library_function_returns_a_string_error() {
             let code = text.split("#[cfg(test)]").next().unwrap();
             let flat: String = code.split_whitespace().collect::<Vec<_>>().join(" ");
             for (i, _) in flat.match_indices("Result<") {
-                let rest = &flat[i..];
-                let end = rest.find('{').unwrap_or(rest.len()).min(200);
-                assert!(
-                    !rest[..end].contains(", String>"),
+                assert_ne!(
+                    error_type(&flat[i + "Result<".len()..]).as_deref(),
+                    Some("String"),
                     "{} returns a String error: {}",
                     f.display(),
-                    &rest[..end]
+                    flat[i..].chars().take(100).collect::<String>()
                 );
             }
         }
     }
+}
+
+/// The error type of `Result<T, E>` from the text after `Result<`: what follows the comma at
+/// the generics' top level, up to the closing `>` (`None` for a one-argument alias).
+fn error_type(args: &str) -> Option<String> {
+    let mut depth = 0;
+    let mut comma = None;
+    for (i, c) in args.char_indices() {
+        match c {
+            '<' | '(' | '[' => depth += 1,
+            ')' | ']' => depth -= 1,
+            '>' if depth == 0 => return comma.map(|at: usize| args[at + 1..i].trim().to_string()),
+            '>' => depth -= 1,
+            ',' if depth == 0 => comma = Some(i),
+            _ => {}
+        }
+    }
+    None
 }
 
 /// The engine's top-level modules: the loop's stages and state (`run`, `stages`), its
@@ -453,6 +470,16 @@ fn architecture_md_lists_the_dependencies_cargo_metadata_gives() {
         "{}'s dependency list has drifted from the Cargo.toml files; it must read:\n{expected}",
         path.display()
     );
+}
+
+#[test]
+fn the_error_type_scanner_reads_nested_generics() {
+    assert_eq!(error_type("(), String> {").as_deref(), Some("String"));
+    assert_eq!(
+        error_type("BTreeMap<String, String>, SceneError> {").as_deref(),
+        Some("SceneError")
+    );
+    assert_eq!(error_type("Vec<(u8, String)>> {"), None);
 }
 
 #[test]
