@@ -24,22 +24,6 @@ use hetsim_scene::{DriveKind, Scenario, Sensor, HAT_SCALE, HAT_THICKNESS_M};
 use nalgebra::Isometry3;
 use rayon::prelude::*;
 
-enum Model {
-    /// `render`: the intrinsics actually rendered (padded beyond the image when distortion
-    /// needs rays outside its undistorted field of view).
-    Pinhole {
-        distortion: Option<[f64; 2]>,
-        render: CameraGeometry,
-    },
-    /// The panorama's pixels, computed once: where each reads the rendered cube faces, and
-    /// which faces (indices into `CUBE`) those are.
-    Omni {
-        face: CameraGeometry,
-        taps: optics::Taps,
-        faces: Vec<usize>,
-    },
-}
-
 struct Rig {
     robot: usize,
     /// `<robot>/<camera>` or `<robot>/<camera>/<left|right>`.
@@ -429,11 +413,7 @@ impl Rig {
             None if stride == 3 && self.gain == 1.0 => src.clone(),
             None => src
                 .chunks_exact(stride)
-                .flat_map(|px| {
-                    px[..3]
-                        .iter()
-                        .map(|&c| noise::quantize(c as f32 * self.gain))
-                })
+                .flat_map(|px| px[..3].iter().map(|&c| quantize(c as f32 * self.gain)))
                 .collect(),
         };
         let data = match self.encoding {
@@ -484,11 +464,6 @@ fn pixel_noise(sigma: f64) -> Option<PixelNoise> {
     (sigma > 0.0).then(|| PixelNoise::new(sigma))
 }
 
-mod noise;
-use noise::PixelNoise;
-
-mod optics;
-use optics::{distort, panorama, panorama_lookup, panorama_taps, pinhole, CUBE};
-
-#[cfg(test)]
-mod tests;
+use hetsim_sensors::camera::{
+    distort, panorama, panorama_lookup, panorama_taps, pinhole, quantize, Model, PixelNoise, CUBE,
+};

@@ -28,6 +28,7 @@
 //!   position is within `range_m` horizontally of this robot, the relative pose
 //!   `self_from_keyframe` with `N(0, σ_m)` per axis and a rotation of `N(0, σ)` per axis.
 
+pub mod camera;
 mod kinds;
 pub mod relative;
 mod suite;

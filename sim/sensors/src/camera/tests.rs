@@ -1,6 +1,7 @@
 //! Tests of the cameras: projection, distortion, panoramas, noise.
 
 use super::*;
+use hetsim_render::Frame;
 
 /// A synthetic render whose red channel is the column and green the row (both < 256).
 fn ramp(k: &CameraGeometry) -> Frame {

@@ -15,7 +15,7 @@ const LEVELS: usize = 1 << 12;
 
 /// The quantile function of the standard normal, Φ⁻¹(p) for 0 < p < 1 (Acklam's rational
 /// approximation, relative error below 1.2e-9).
-pub(super) fn inverse_normal_cdf(p: f64) -> f64 {
+pub fn inverse_normal_cdf(p: f64) -> f64 {
     const A: [f64; 6] = [
         -3.969_683_028_665_376e1,
         2.209_460_984_245_205e2,
@@ -66,7 +66,7 @@ pub(super) fn inverse_normal_cdf(p: f64) -> f64 {
 /// by σ. A 16-bit draw picks a cell with its top 12 bits; in the two tail cells (beyond
 /// ±3.35σ, where a midpoint would truncate the tail) its low 4 bits place the value within
 /// the cell by the exact quantile function, down to p = 2⁻¹⁷ (±4.33σ).
-pub(super) struct PixelNoise {
+pub struct PixelNoise {
     table: Vec<f32>,
     /// The table rounded half up, for unit gain: `round(c + n) = c + round(n)` for integer
     /// `c`, so the image needs only integer additions.
@@ -76,7 +76,7 @@ pub(super) struct PixelNoise {
 
 impl PixelNoise {
     /// Noise of standard deviation `sigma` (grey levels).
-    pub(super) fn new(sigma: f64) -> Self {
+    pub fn new(sigma: f64) -> Self {
         let table = (0..LEVELS)
             .map(|i| (sigma * inverse_normal_cdf((i as f64 + 0.5) / LEVELS as f64)) as f32)
             .collect::<Vec<f32>>();
@@ -168,13 +168,7 @@ impl PixelNoise {
     /// bytes, the first three of which are RGB), into `rgb`. The image's noise bits come from
     /// [`SplitMix64`] seeded by one word of the camera's stream; channel `i` takes bits
     /// `16 (i mod 4)..` of word `i / 4`.
-    pub(super) fn apply(
-        &self,
-        src: &[u8],
-        stride: usize,
-        gain: f32,
-        rng: &mut impl Rng,
-    ) -> Vec<u8> {
+    pub fn apply(&self, src: &[u8], stride: usize, gain: f32, rng: &mut impl Rng) -> Vec<u8> {
         let mut bits = SplitMix64(rng.next_u64());
         if gain == 1.0 && stride == 4 {
             self.add_rounded_rgba(src, &mut bits)
@@ -245,7 +239,7 @@ impl SplitMix64 {
 /// The channel's byte: rounded half up, clamped to 0-255 (a float-to-integer conversion, not
 /// a libm call).
 #[inline]
-pub(super) fn quantize(v: f32) -> u8 {
+pub fn quantize(v: f32) -> u8 {
     (v.clamp(0.0, 255.0) + 0.5) as u8
 }
 

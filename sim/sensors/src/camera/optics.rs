@@ -9,7 +9,7 @@ use rayon::prelude::*;
 
 /// The six cube faces as (yaw, pitch) of the face's mount frame: forward, left, back, right,
 /// up (pitch -90°: x axis up), down.
-pub(super) const CUBE: [(f64, f64); 6] = [
+pub const CUBE: [(f64, f64); 6] = [
     (0.0, 0.0),
     (std::f64::consts::FRAC_PI_2, 0.0),
     (std::f64::consts::PI, 0.0),
@@ -18,7 +18,9 @@ pub(super) const CUBE: [(f64, f64); 6] = [
     (0.0, std::f64::consts::FRAC_PI_2),
 ];
 
-pub(super) fn bilinear(f: &Frame, u: f64, v: f64) -> Option<([f64; 3], Option<f32>)> {
+/// The colour (and depth, where rendered) at `(u, v)` of a rendered frame, bilinear, if
+/// inside it.
+pub fn bilinear(f: &Frame, u: f64, v: f64) -> Option<([f64; 3], Option<f32>)> {
     let (w, h) = (f.width as i64, f.height as i64);
     if u < 0.0 || v < 0.0 || u > (w - 1) as f64 || v > (h - 1) as f64 {
         return None;
@@ -41,7 +43,7 @@ pub(super) fn bilinear(f: &Frame, u: f64, v: f64) -> Option<([f64; 3], Option<f3
 }
 
 /// The undistorted normalized coordinates of distorted normalized `(xd, yd)`.
-pub(super) fn undistort(xd: f64, yd: f64, [k1, k2]: [f64; 2]) -> (f64, f64) {
+pub fn undistort(xd: f64, yd: f64, [k1, k2]: [f64; 2]) -> (f64, f64) {
     let (mut xu, mut yu) = (xd, yd);
     for _ in 0..20 {
         let r2 = xu * xu + yu * yu;
@@ -54,7 +56,7 @@ pub(super) fn undistort(xd: f64, yd: f64, [k1, k2]: [f64; 2]) -> (f64, f64) {
 
 /// A pinhole model; with distortion, the render is padded so that every image pixel's
 /// undistorted ray falls inside it.
-pub(super) fn pinhole(k: CameraGeometry, distortion: Option<[f64; 2]>) -> Model {
+pub fn pinhole(k: CameraGeometry, distortion: Option<[f64; 2]>) -> Model {
     let Some(d) = distortion else {
         return Model::Pinhole {
             distortion,
@@ -92,7 +94,7 @@ pub(super) fn pinhole(k: CameraGeometry, distortion: Option<[f64; 2]>) -> Model 
 
 /// Applies radial distortion: each output pixel samples the (padded) undistorted render at the
 /// undistorted position of its ray (fixed-point inversion of the distortion).
-pub(super) fn distort(
+pub fn distort(
     f: &Frame,
     k: &CameraGeometry,
     render: &CameraGeometry,
@@ -128,7 +130,7 @@ pub(super) fn distort(
 
 /// For each panorama pixel: which cube face sees its ray, where, and the ratio of range to
 /// that face's depth.
-pub(super) fn panorama_lookup(
+pub fn panorama_lookup(
     face: &CameraGeometry,
     w: u32,
     h: u32,
@@ -174,7 +176,7 @@ pub(super) fn panorama_lookup(
 /// (row) the tap starts one pixel left (up) with the full weight 256 on the edge pixel, so
 /// that the neighbours always exist and the value is the edge pixel's, as clamping gives.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub(super) struct Tap {
+pub struct Tap {
     index: u32,
     wx: u16,
     wy: u16,
@@ -183,7 +185,7 @@ pub(super) struct Tap {
 /// Every panorama pixel's [`Tap`], the faces' width, and per pixel the ratio of range to the
 /// face's depth there (for panoramas with depth).
 #[derive(Clone, Debug, PartialEq)]
-pub(super) struct Taps {
+pub struct Taps {
     taps: Vec<Tap>,
     face_width: u32,
     range_scale: Vec<f32>,
@@ -192,10 +194,7 @@ pub(super) struct Taps {
 /// The panorama's taps in fixed point and the cube faces they read (indices into [`CUBE`],
 /// ascending): a face no pixel reads (above 45° for the robot file's elevations) is not
 /// rendered at all.
-pub(super) fn panorama_taps(
-    face: &CameraGeometry,
-    lookup: &[(u8, f32, f32, f32)],
-) -> (Taps, Vec<usize>) {
+pub fn panorama_taps(face: &CameraGeometry, lookup: &[(u8, f32, f32, f32)]) -> (Taps, Vec<usize>) {
     let mut used = [false; 6];
     for &(f, ..) in lookup {
         used[f as usize] = true;
@@ -242,7 +241,7 @@ pub(super) fn panorama_taps(
 /// [`panorama_taps`]'s faces), and its range where the faces have depth. Bilinear in fixed
 /// point (weights in 1/256ths): each channel is within 1.5 levels of the exact
 /// interpolation, and within one where neighbours differ by under 128 levels.
-pub(super) fn panorama(faces: &[Frame], taps: &Taps) -> (Vec<u8>, Option<Vec<f32>>) {
+pub fn panorama(faces: &[Frame], taps: &Taps) -> (Vec<u8>, Option<Vec<f32>>) {
     // The faces end to end, a pixel (RGBA, little-endian) per u32.
     let mut pixels: Vec<u32> = Vec::with_capacity(faces.iter().map(|f| f.rgba.len() / 4).sum());
     for f in faces {
