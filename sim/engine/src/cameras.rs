@@ -1,4 +1,5 @@
-//! The robots' cameras: what to render when, and the camera model after rendering.
+//! The robots' cameras: what to render when, and applying the camera model after rendering
+//! (`hetsim_sensors::camera`) to what was rendered.
 //!
 //! * Pinhole cameras and each camera of a stereo bench render as one view; the right camera
 //!   of a bench sits `baseline_m` along the left camera's -y (its right), same orientation.

@@ -9,6 +9,12 @@
 
 use serde::{Deserialize, Serialize};
 
+/// An `f64` that metrics.json may hold as `null`: JSON has no NaN, so serde_json writes a NaN
+/// (a figure a run does not have) as `null`; this reads it back as NaN.
+pub fn f64_or_null<'de, D: serde::Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
+    Ok(Option::<f64>::deserialize(d)?.unwrap_or(f64::NAN))
+}
+
 /// Mean and standard deviation.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct MeanStd {

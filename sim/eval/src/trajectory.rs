@@ -12,7 +12,8 @@ use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 
-/// How good an estimated trajectory is.
+/// How good an estimated trajectory is. A figure the trajectory is too short for is NaN,
+/// written `null` in metrics.json, and read back as NaN.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Accuracy {
     /// Poses paired with truth.
@@ -20,15 +21,19 @@ pub struct Accuracy {
     /// Length of the true path over those poses, metres.
     pub length_m: f64,
     /// Absolute trajectory error after SE(3) alignment, RMSE, metres.
+    #[serde(deserialize_with = "crate::stats::f64_or_null")]
     pub ate_m: f64,
     /// The same without alignment, RMSE, metres: the estimate where its frame lies in the
     /// world ([`crate::frames::artifact_frame`]: the team's frame, Dala's first origin, placed
     /// by the truth; open loop and VO where the robot's first link put them in it; a robot
     /// never linked, by its own first true pose).
+    #[serde(deserialize_with = "crate::stats::f64_or_null")]
     pub ate_unaligned_m: f64,
     /// Relative pose error of translation over 1 s, RMSE, metres.
+    #[serde(deserialize_with = "crate::stats::f64_or_null")]
     pub rpe_1s_m: f64,
     /// Position error of the last pose without alignment, metres.
+    #[serde(deserialize_with = "crate::stats::f64_or_null")]
     pub final_error_m: f64,
 }
 
@@ -145,6 +150,21 @@ pub fn estimates(output: &RunOutput) -> Vec<Estimate> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn an_accuracy_too_short_for_its_figures_reads_back_from_json_as_nan() {
+        // Two poses 0.1 s apart: no 1 s RPE.
+        let track: Vec<(u64, Pose)> = (0..2)
+            .map(|k| (k * 100_000_000, Pose::identity()))
+            .collect();
+        let a = evaluate(&track, &track);
+        assert!(a.rpe_1s_m.is_nan(), "{a:?}");
+        let json = serde_json::to_string(&a).unwrap();
+        assert!(json.contains("\"rpe_1s_m\":null"), "{json}");
+        let back: Accuracy = serde_json::from_str(&json).unwrap();
+        assert!(back.rpe_1s_m.is_nan());
+        assert_eq!((back.poses, back.ate_m), (a.poses, a.ate_m));
+    }
     use hetsim_msgs::pose_from_xyz_rpy;
 
     #[test]

@@ -23,7 +23,8 @@ pub struct CoverageSpec {
     /// metres (0 in the seed's model; covers how far a robot stands off its vertex, by the
     /// drive's and the tracker's errors, when the mission runs in the simulator).
     pub view_margin_m: f64,
-    /// Number of children N; `None` counts the scenario's c't-Bots.
+    /// Number of children N; `None` counts the scenario's robots that wear a hat (the
+    /// children, as their robot files declare).
     pub children: Option<usize>,
     /// Candidate distance f as a multiple of r_los (Eq. 6).
     pub f_factor: f64,

@@ -1,11 +1,13 @@
-//! Non-visual sensor models: compass, GPS, wheel odometry, IMU, laser scanner, child tracker
-//! and rendezvous sensor, sampled from the physics world in lockstep.
+//! Sensor models: compass, GPS, wheel odometry, IMU, laser scanner, child tracker, rendezvous
+//! and image-match sensors, one module each (`kinds`), sampled from the physics world in
+//! lockstep; and the camera model after rendering ([`camera`]).
 //!
 //! Every sensor of every robot gets its own random stream, `<robot>/<sensor>/noise`, so that
 //! adding a sensor or a robot never changes another sensor's noise. Each sensor fires on the
 //! ticks that are whole multiples of its period (GPS may instead follow a schedule), and its
-//! message is stamped with the sim time at the end of that tick. Cameras are not modelled
-//! here: they are rendered.
+//! message is stamped with the sim time at the end of that tick. Cameras are rendered by the
+//! engine; what a camera does to the rendered image (distortion, panorama, gain, pixel noise)
+//! is [`camera`]'s.
 //!
 //! Noise models (σ values come from the robot files):
 //! * compass: `yaw + bias + distortion * sin(yaw) + N(0, σ)`, wrapped to (-π, π];

@@ -147,7 +147,7 @@ fn no_code_compares_robot_models_by_name_and_evaluation_calls_no_stacks() {
     for dir in ["sim", "robots"] {
         for f in sources(&repo().join(dir)) {
             let text = std::fs::read_to_string(&f).unwrap();
-            let code = text.split("#[cfg(test)]").next().unwrap();
+            let code = non_test_code(&text);
             for pattern in ["model == \"", "model != \""] {
                 assert!(
                     !code.contains(pattern),
@@ -173,7 +173,7 @@ fn no_library_function_returns_a_string_error() {
                 continue;
             }
             let text = std::fs::read_to_string(&f).unwrap();
-            let code = text.split("#[cfg(test)]").next().unwrap();
+            let code = non_test_code(&text);
             let flat: String = code.split_whitespace().collect::<Vec<_>>().join(" ");
             for (i, _) in flat.match_indices("Result<") {
                 assert_ne!(
@@ -186,6 +186,25 @@ fn no_library_function_returns_a_string_error() {
             }
         }
     }
+}
+
+/// A source file without its inline test module (`#[cfg(test)] mod tests { ... }`, which
+/// comes last by convention); a `#[cfg(test)] mod tests;` declaration is not a cut.
+fn non_test_code(text: &str) -> &str {
+    let mut from = 0;
+    while let Some(at) = text[from..].find("#[cfg(test)]") {
+        let at = from + at;
+        let after = text[at + "#[cfg(test)]".len()..].trim_start();
+        let inline = match (after.find('{'), after.find(';')) {
+            (Some(brace), semicolon) => semicolon.is_none_or(|semicolon| brace < semicolon),
+            (None, _) => false,
+        };
+        if after.starts_with("mod ") && inline {
+            return &text[..at];
+        }
+        from = at + 1;
+    }
+    text
 }
 
 /// The error type of `Result<T, E>` from the text after `Result<`: what follows the comma at
@@ -470,6 +489,12 @@ fn architecture_md_lists_the_dependencies_cargo_metadata_gives() {
         "{}'s dependency list has drifted from the Cargo.toml files; it must read:\n{expected}",
         path.display()
     );
+}
+
+#[test]
+fn the_test_module_cut_keeps_code_after_a_test_module_declaration() {
+    let text = "#[cfg(test)]\nmod tests;\nfn a() {}\n#[cfg(test)]\nmod more {\n fn b() {}\n}\n";
+    assert_eq!(non_test_code(text), "#[cfg(test)]\nmod tests;\nfn a() {}\n");
 }
 
 #[test]
