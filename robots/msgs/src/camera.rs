@@ -22,6 +22,7 @@ pub struct Pinhole {
 
 impl Pinhole {
     /// Pixel of a point in the optical frame, if in front of the camera (z > 0).
+    #[inline]
     pub fn project(&self, p: &Vector3<f64>) -> Option<[f64; 2]> {
         (p.z > 1e-9).then(|| {
             [
@@ -32,6 +33,7 @@ impl Pinhole {
     }
 
     /// Jacobian of [`Pinhole::project`] with respect to the point, 2 x 3, row-major.
+    #[inline]
     pub fn project_jacobian(&self, p: &Vector3<f64>) -> [[f64; 3]; 2] {
         let iz = 1.0 / p.z;
         [
@@ -42,6 +44,7 @@ impl Pinhole {
 
     /// The point at depth `z` (along the optical axis) seen at pixel `(u, v)`; with `z = 1`,
     /// the pixel's ray.
+    #[inline]
     pub fn back_project(&self, u: f64, v: f64, z: f64) -> Vector3<f64> {
         Vector3::new(
             (u - self.u0) / self.alpha_u * z,
@@ -51,6 +54,7 @@ impl Pinhole {
     }
 
     /// `K`.
+    #[inline]
     pub fn matrix(&self) -> Matrix3<f64> {
         Matrix3::new(
             self.alpha_u,

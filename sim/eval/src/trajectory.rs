@@ -163,7 +163,18 @@ mod tests {
         assert!(json.contains("\"rpe_1s_m\":null"), "{json}");
         let back: Accuracy = serde_json::from_str(&json).unwrap();
         assert!(back.rpe_1s_m.is_nan());
-        assert_eq!((back.poses, back.ate_m), (a.poses, a.ate_m));
+        // Every figure comes back: numbers as they were, NaN as NaN.
+        let figures = |x: &Accuracy| {
+            [
+                x.length_m,
+                x.ate_m,
+                x.ate_unaligned_m,
+                x.rpe_1s_m,
+                x.final_error_m,
+            ]
+            .map(|v| (v.is_nan(), if v.is_nan() { 0.0 } else { v }))
+        };
+        assert_eq!((back.poses, figures(&back)), (a.poses, figures(&a)));
     }
     use hetsim_msgs::pose_from_xyz_rpy;
 
