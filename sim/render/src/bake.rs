@@ -50,6 +50,7 @@ pub(crate) struct Texels {
 }
 
 /// 32-bit integer hash of a lattice point and a seed, in [0, 1).
+#[inline]
 pub(crate) fn hash(ix: i64, iy: i64, seed: u32) -> f32 {
     let mut h = (ix as u32).wrapping_mul(0x9E37_79B1)
         ^ (iy as u32).wrapping_mul(0x85EB_CA77)
@@ -62,17 +63,34 @@ pub(crate) fn hash(ix: i64, iy: i64, seed: u32) -> f32 {
     (h >> 8) as f32 / 16_777_216.0
 }
 
+/// `x.floor()`, the same value (the sign of a zero included), without the libm call that
+/// x86-64's baseline instruction set (no SSE4.1 `roundss`) makes of it: value noise floors
+/// two coordinates per octave, hundreds of millions a bake. Beyond 2^23 every float is whole,
+/// and what is not finite goes to libm.
+fn floor_of(x: f32) -> f32 {
+    if x.is_nan() || x.abs() >= 8_388_608.0 {
+        return x.floor();
+    }
+    let t = x as i32 as f32;
+    let r = if t > x { t - 1.0 } else { t };
+    r.copysign(x)
+}
+
 /// Smooth value noise at `(x, y)` in lattice units; lattice coordinates wrap at `period`
 /// (0: no wrapping), which makes the noise tile with that period.
+#[inline]
 pub(crate) fn value_noise(x: f32, y: f32, seed: u32, period: i64) -> f32 {
-    let (fx, fy) = (x.floor(), y.floor());
+    let (fx, fy) = (floor_of(x), floor_of(y));
     let (tx, ty) = (x - fx, y - fy);
     let (ux, uy) = (tx * tx * (3.0 - 2.0 * tx), ty * ty * (3.0 - 2.0 * ty));
     let (ix, iy) = (fx as i64, fy as i64);
     let wrap = |i: i64| if period > 0 { i.rem_euclid(period) } else { i };
-    let h = |dx: i64, dy: i64| hash(wrap(ix + dx), wrap(iy + dy), seed);
-    let top = h(0, 0) + (h(1, 0) - h(0, 0)) * ux;
-    let bottom = h(0, 1) + (h(1, 1) - h(0, 1)) * ux;
+    // The four corners' lattice coordinates, each wrapped once.
+    let (x0, x1, y0, y1) = (wrap(ix), wrap(ix + 1), wrap(iy), wrap(iy + 1));
+    let (h00, h10) = (hash(x0, y0, seed), hash(x1, y0, seed));
+    let (h01, h11) = (hash(x0, y1, seed), hash(x1, y1, seed));
+    let top = h00 + (h10 - h00) * ux;
+    let bottom = h01 + (h11 - h01) * ux;
     top + (bottom - top) * uy
 }
 
@@ -113,22 +131,48 @@ fn gamma_table() -> &'static [f32; 256] {
     TABLE.get_or_init(|| std::array::from_fn(|b| (b as f64 / 255.0).powf(GAMMA) as f32))
 }
 
+/// The midpoints between successive encoded values' linear light, `(t[k] + t[k + 1]) / 2` in
+/// `f32`, and per bucket of [`BUCKETS`] over [0, 1] how many of them lie below the bucket's
+/// lower end: where [`encode`]'s walk starts.
+struct Encoder {
+    midpoints: [f32; 255],
+    start: Vec<u8>,
+}
+
+/// Buckets of [`Encoder::start`] over [0, 1]: at most a few midpoints share one, but near 0
+/// (the first 6 encoded values lie under 1/4096 in linear light).
+const BUCKETS: usize = 4096;
+
+fn encoder() -> &'static Encoder {
+    static ENCODER: std::sync::OnceLock<Encoder> = std::sync::OnceLock::new();
+    ENCODER.get_or_init(|| {
+        let t = gamma_table();
+        let midpoints: [f32; 255] = std::array::from_fn(|k| (t[k] + t[k + 1]) / 2.0);
+        let start = (0..=BUCKETS)
+            .map(|b| {
+                let low = b as f32 / BUCKETS as f32;
+                midpoints.iter().filter(|&&m| m < low).count() as u8
+            })
+            .collect();
+        Encoder { midpoints, start }
+    })
+}
+
 /// Linear light to the nearest 8-bit encoded value (nearest in linear light, so that it
-/// inverts [`decode`] exactly).
+/// inverts [`decode`] exactly): the number of midpoints between encoded values below it.
+/// Every texel of every bake goes through here, so it starts from the bucket below the
+/// value's and walks up, instead of searching all 255 midpoints; the bytes are those of the
+/// plain count (a test compares the two).
 pub(crate) fn encode(linear: f32) -> u8 {
-    let t = gamma_table();
+    let e = encoder();
     let l = linear.clamp(0.0, 1.0);
-    // The first value whose midpoint with its successor is not below `l`.
-    let (mut lo, mut hi) = (0usize, 255usize);
-    while lo < hi {
-        let mid = (lo + hi) / 2;
-        if (t[mid] + t[mid + 1]) / 2.0 < l {
-            lo = mid + 1;
-        } else {
-            hi = mid;
-        }
+    // The bucket below the value's: `l * BUCKETS` may round up across a bucket's edge.
+    let bucket = ((l * BUCKETS as f32) as usize).saturating_sub(1);
+    let mut k = e.start[bucket] as usize;
+    while k < 255 && e.midpoints[k] < l {
+        k += 1;
     }
-    lo as u8
+    k as u8
 }
 
 /// An 8-bit encoded value to linear light.
@@ -400,6 +444,77 @@ mod tests {
         let l = layers();
         assert_eq!(l.len() as u32, layer::COUNT);
         assert!(l.iter().all(|t| t.side == LAYER_TEXELS && t.encoded));
+    }
+
+    /// The plain definition [`encode`] computes fast: the first value whose midpoint with
+    /// its successor is not below `l` (a binary search over the 255 midpoints).
+    fn encode_by_search(linear: f32) -> u8 {
+        let t = gamma_table();
+        let l = linear.clamp(0.0, 1.0);
+        let (mut lo, mut hi) = (0usize, 255usize);
+        while lo < hi {
+            let mid = (lo + hi) / 2;
+            if (t[mid] + t[mid + 1]) / 2.0 < l {
+                lo = mid + 1;
+            } else {
+                hi = mid;
+            }
+        }
+        lo as u8
+    }
+
+    #[test]
+    fn encoding_is_the_binary_search_s_at_every_midpoint_bucket_edge_and_between() {
+        let e = encoder();
+        // Each midpoint and bucket edge and the 8 floats either side, where a walk that
+        // starts too late or stops too early would show; then a dense sweep of [0, 1] and
+        // what lies outside it.
+        let edges = e
+            .midpoints
+            .iter()
+            .copied()
+            .chain((0..=BUCKETS).map(|b| b as f32 / BUCKETS as f32));
+        let mut values: Vec<f32> = edges
+            .flat_map(|m| {
+                (-8i32..=8).map(move |d| f32::from_bits((m.to_bits() as i32 + d).max(0) as u32))
+            })
+            .collect();
+        values.extend((0..=2_000_000).map(|i| i as f32 / 2_000_000.0));
+        values.extend([-1.0, -0.0, 1.5, f32::INFINITY, f32::NEG_INFINITY, f32::NAN]);
+        for l in values {
+            assert_eq!(encode(l), encode_by_search(l), "{l:e} ({:#x})", l.to_bits());
+        }
+    }
+
+    #[test]
+    fn floor_is_the_standard_library_s_bit_for_bit() {
+        let mut values: Vec<f32> = (-3_000_000..=3_000_000)
+            .map(|i| i as f32 / 1024.0)
+            .collect();
+        for w in [
+            0.0f32,
+            1.0,
+            -1.0,
+            8_388_607.0,
+            8_388_608.0,
+            -8_388_608.0,
+            3e9,
+            -3e9,
+        ] {
+            values.extend((-4i32..=4).map(|d| f32::from_bits((w.to_bits() as i32 + d) as u32)));
+        }
+        values.extend([
+            -0.0,
+            f32::MIN_POSITIVE,
+            -f32::MIN_POSITIVE,
+            0.999_999_94,
+            -0.999_999_94,
+        ]);
+        values.extend([f32::MAX, f32::MIN, f32::INFINITY, f32::NEG_INFINITY]);
+        for x in values {
+            assert_eq!(floor_of(x).to_bits(), x.floor().to_bits(), "{x:e}");
+        }
+        assert!(floor_of(f32::NAN).is_nan());
     }
 
     #[test]
