@@ -22,6 +22,7 @@ use hetsim_vision::appearance::{best_match, Feature, Features};
 use hetsim_vision::Gray;
 use serde_json::Value;
 use std::path::Path;
+use std::process::Output;
 
 /// `(backend, driver)` of the manifest -> digest.
 type PerAdapter = &'static [(&'static str, &'static str, &'static str)];
@@ -45,7 +46,7 @@ fn check_backends_and(name: &str, args: &[&str], golden: PerAdapter, outputs: &d
         compared += usize::from(check(
             &format!("{name}-{backend}"),
             &all,
-            &[("RAYON_NUM_THREADS", threads)],
+            Some(threads),
             golden,
             outputs,
         ));
@@ -56,13 +57,13 @@ fn check_backends_and(name: &str, args: &[&str], golden: PerAdapter, outputs: &d
     );
 }
 
-/// Runs `args` once with the extra environment `env`; compares its digest with `golden` for
-/// the adapter it ran on. Returns whether it compared; `false` when the backend has no
-/// adapter here or the adapter has no recorded digest.
+/// Runs `args` once (on `threads` worker threads where given); compares its digest with `golden` for the
+/// adapter it ran on. Returns whether it compared; `false` when the backend has no adapter
+/// here or the adapter has no recorded digest.
 fn check(
     name: &str,
     args: &[&str],
-    env: &[(&str, &str)],
+    threads: Option<&str>,
     golden: PerAdapter,
     outputs: &dyn Fn(&Path),
 ) -> bool {
@@ -70,20 +71,37 @@ fn check(
     let out = dir.path().join(name);
     let mut all = args.to_vec();
     all.extend(["--out", out.to_str().unwrap()]);
-    let output = hetsim_release(&all, env);
+    let env: Vec<(&str, &str)> = threads
+        .map(|t| ("RAYON_NUM_THREADS", t))
+        .into_iter()
+        .collect();
+    let output = hetsim_release(&all, &env);
+    verify(name, &output, &out, threads, golden, outputs)
+}
+
+/// Checks a run made elsewhere (`output` is what it printed, `out` its results folder) as
+/// [`check`] checks its own.
+fn verify(
+    name: &str,
+    output: &Output,
+    out: &Path,
+    threads: Option<&str>,
+    golden: PerAdapter,
+    outputs: &dyn Fn(&Path),
+) -> bool {
     let stderr = String::from_utf8_lossy(&output.stderr);
     if !output.status.success() && stderr.contains("no usable graphics adapter") {
         eprintln!("{name}: skipped, no adapter for this backend here: {stderr}");
         return false;
     }
-    let digest = printed_digest(&output);
+    let digest = printed_digest(output);
     // The run used the worker threads it was given.
-    if let Some((_, threads)) = env.iter().find(|(k, _)| *k == "RAYON_NUM_THREADS") {
+    if let Some(threads) = threads {
         let timing: Value =
             serde_json::from_slice(&std::fs::read(out.join("timing.json")).unwrap()).unwrap();
         assert_eq!(timing["threads"], threads.parse::<u64>().unwrap(), "{name}");
     }
-    outputs(&out);
+    outputs(out);
     let manifest: Value =
         serde_json::from_slice(&std::fs::read(out.join("manifest.json")).unwrap()).unwrap();
     let adapter = &manifest["adapter"];
@@ -385,22 +403,44 @@ fn assert_tracking(tracking: &Value, min_fixes: u64) {
 /// `tests/team.rs`'s lab test, which made four more lab runs).
 #[test]
 fn golden_lab_mission() {
-    check_backends_and(
-        "lab",
-        &["run", "scenarios/lab.toml"],
-        &[
-            (
-                LAVAPIPE.0,
-                LAVAPIPE.1,
-                "7fdaffc14e91290821c139960e0d1a15a1d24bfccaa7d79a0fd46ecd7dddfef0",
-            ),
-            (
-                LLVMPIPE_GL.0,
-                LLVMPIPE_GL.1,
-                "f489ad8962071425695b2cd719f1327b22dc8f5d34bb7a43ad2e642110d70fe7",
-            ),
-        ],
-        &lab_outputs,
+    const GOLDEN: PerAdapter = &[
+        (
+            LAVAPIPE.0,
+            LAVAPIPE.1,
+            "7fdaffc14e91290821c139960e0d1a15a1d24bfccaa7d79a0fd46ecd7dddfef0",
+        ),
+        (
+            LLVMPIPE_GL.0,
+            LLVMPIPE_GL.1,
+            "f489ad8962071425695b2cd719f1327b22dc8f5d34bb7a43ad2e642110d70fe7",
+        ),
+    ];
+    // The Vulkan run is the recorded one the replay test replays (crate::shared).
+    let mut compared = 0;
+    for (backend, threads) in BACKENDS {
+        compared += usize::from(if backend == "vulkan" {
+            let run = crate::shared::recorded_lab_on_vulkan();
+            verify(
+                "lab-vulkan",
+                &run.output,
+                &run.out,
+                Some(threads),
+                GOLDEN,
+                &lab_outputs,
+            )
+        } else {
+            check(
+                &format!("lab-{backend}"),
+                &["run", "scenarios/lab.toml", "--backend", backend],
+                Some(threads),
+                GOLDEN,
+                &lab_outputs,
+            )
+        });
+    }
+    assert!(
+        compared >= 1,
+        "lab: no backend had an adapter with a recorded digest"
     );
 }
 
@@ -572,7 +612,7 @@ fn golden_indoor_grid_20_without_cameras() {
     assert!(check(
         "indoor-grid-20",
         &["run", "scenarios/indoor-grid-20.toml", "--no-render"],
-        &[],
+        None,
         &[(
             "none",
             "none",

@@ -22,6 +22,7 @@ mod render;
 mod replay;
 mod replay_fuzz;
 mod sensors;
+mod shared;
 mod slam;
 mod slurm;
 mod stack_inputs;

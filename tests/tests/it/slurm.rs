@@ -149,15 +149,9 @@ fn village_and_lab_sweeps_through_slurm_merge_to_the_files_of_one_machine() {
                 repo().join("scenarios/village-short.toml").display()
             ),
         ),
-        // The lab's mission (rendered grabs) over the children's compass noise.
-        write_sweep(
-            tmp.path(),
-            "lab",
-            &format!(
-                "base = \"{}\"\nseeds = 2\nfirst_seed = 1\nduration_secs = 120.0\nmetrics = [\"team.imaged\", \"team.compass_heading_error_deg.mean\", \"comms.sent\"]\n[axes]\n\"models.ctbot.sensors.compass.sigma_deg\" = [2.0, 6.0]\n",
-                repo().join("scenarios/lab.toml").display()
-            ),
-        ),
+        // The lab's mission (rendered grabs) over the children's compass noise: the sweep
+        // whose one-machine folder `sweep_runs` checks (crate::shared).
+        crate::shared::lab_sweep_file().to_path_buf(),
     ];
     // Submit both (3 array tasks each, 4 runs: shards of 2, 1 and 1 runs), then wait.
     let mut jobs = Vec::new();
@@ -203,27 +197,32 @@ fn village_and_lab_sweeps_through_slurm_merge_to_the_files_of_one_machine() {
         assert_eq!(tasks.len(), 3, "array {array}: one record per task");
         cluster.wait(merge, &logs, Duration::from_secs(300));
 
-        // The same sweep on one machine.
-        let local = tmp.path().join(format!(
-            "{}-local",
-            file.file_stem().unwrap().to_string_lossy()
-        ));
-        let ran = hetsim(
-            &[
-                "sweep",
-                file.to_str().unwrap(),
-                "--jobs",
-                "2",
-                "--out",
-                local.to_str().unwrap(),
-            ],
-            &[],
-        );
-        assert!(
-            ran.status.success(),
-            "{}",
-            String::from_utf8_lossy(&ran.stderr)
-        );
+        // The same sweep on one machine: the lab's is shared with `sweep_runs`.
+        let local = if file == crate::shared::lab_sweep_file() {
+            crate::shared::lab_sweep_one_job().to_path_buf()
+        } else {
+            let local = tmp.path().join(format!(
+                "{}-local",
+                file.file_stem().unwrap().to_string_lossy()
+            ));
+            let ran = hetsim(
+                &[
+                    "sweep",
+                    file.to_str().unwrap(),
+                    "--jobs",
+                    "2",
+                    "--out",
+                    local.to_str().unwrap(),
+                ],
+                &[],
+            );
+            assert!(
+                ran.status.success(),
+                "{}",
+                String::from_utf8_lossy(&ran.stderr)
+            );
+            local
+        };
         hetsim_tests::assert_same_sweep_folders(&local, out);
         // Four runs, each with its results folder, in both.
         let runs = std::fs::read_to_string(out.join("runs.csv")).unwrap();

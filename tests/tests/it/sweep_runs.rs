@@ -2,22 +2,7 @@
 //! each run's metrics.json, the same files for any job count, sharding or resumption.
 
 use hetsim_tests::{assert_same_sweep_folders as assert_same_tree, hetsim, repo};
-use std::path::{Path, PathBuf};
-
-/// A lab sweep cut to its first 120 sim seconds (rendered grabs, tracker, radio): two compass
-/// noises on every c't-Bot x two seeds.
-fn lab_sweep(dir: &Path, extra: &str) -> PathBuf {
-    let path = dir.join("lab-runs.toml");
-    std::fs::write(
-        &path,
-        format!(
-            "schema_version = 1\nname = \"lab-runs\"\nkind = \"run\"\nbase = \"{}\"\nseeds = 2\nfirst_seed = 3\nduration_secs = 120.0\nmetrics = [\"team.imaged\", \"team.compass_heading_error_deg.mean\", \"robots.0.distance_m\", \"comms.sent\"]\n{extra}\n[axes]\n\"models.ctbot.sensors.compass.sigma_deg\" = [1.0, 16.0]\n",
-            repo().join("scenarios/lab.toml").display()
-        ),
-    )
-    .unwrap();
-    path
-}
+use std::path::Path;
 
 fn sweep(args: &[&str]) -> String {
     let out = hetsim(&[&["sweep"], args].concat(), &[]);
@@ -28,6 +13,20 @@ fn sweep(args: &[&str]) -> String {
     );
     assert!(out.status.success(), "hetsim sweep {args:?}: {text}");
     text
+}
+
+/// `from`'s files and folders, copied to `to` (a new folder).
+fn copy_tree(from: &Path, to: &Path) {
+    std::fs::create_dir_all(to).unwrap();
+    for e in std::fs::read_dir(from).unwrap() {
+        let p = e.unwrap().path();
+        let target = to.join(p.file_name().unwrap());
+        if p.is_dir() {
+            copy_tree(&p, &target);
+        } else {
+            std::fs::copy(&p, &target).unwrap();
+        }
+    }
 }
 
 fn csv_rows(path: &Path) -> Vec<Vec<String>> {
@@ -41,13 +40,14 @@ fn csv_rows(path: &Path) -> Vec<Vec<String>> {
 #[test]
 fn a_whole_run_sweep_is_the_same_for_any_jobs_sharding_and_resumption() {
     let tmp = tempfile::tempdir().unwrap();
-    let file = lab_sweep(tmp.path(), "");
-    let f = file.to_str().unwrap();
+    // The whole sweep one run at a time (crate::shared, which the Slurm test reads too);
+    // below, the same sweep in two shards, one of them two runs at a time, must give the
+    // same folder.
+    let (f, one) = (
+        crate::shared::lab_sweep_file().to_str().unwrap(),
+        crate::shared::lab_sweep_one_job(),
+    );
     let at = |name: &str| tmp.path().join(name);
-    // The whole sweep one run at a time; below, the same sweep in two shards, one of them two
-    // runs at a time, must give the same folder.
-    let one = at("jobs1");
-    sweep(&[f, "--jobs", "1", "--out", one.to_str().unwrap()]);
 
     // runs.csv: a row per run with its axis value, seed, digest and the four metrics; the
     // compass noise reached the robots (their resolved robot files in the manifest) and
@@ -129,7 +129,7 @@ fn a_whole_run_sweep_is_the_same_for_any_jobs_sharding_and_resumption() {
         "--out",
         merged.to_str().unwrap(),
     ]);
-    assert_same_tree(&one, &merged);
+    assert_same_tree(one, &merged);
     // A shard missing from the merge is refused, naming the first run it lacks.
     let partial = hetsim(
         &[
@@ -151,7 +151,11 @@ fn a_whole_run_sweep_is_the_same_for_any_jobs_sharding_and_resumption() {
     );
 
     // Resumption: a run whose row was lost but whose results folder is whole is read back,
-    // not run again (its timing.json is kept); a run with neither is run again.
+    // not run again (its timing.json is kept); a run with neither is run again. On a copy:
+    // the shared folder stays as `--jobs 1` wrote it.
+    let reference = one;
+    let one = &at("resumed");
+    copy_tree(reference, one);
     let timing = one.join("runs/000001/timing.json");
     let before = std::fs::read(&timing).unwrap();
     std::fs::remove_file(one.join("rows/000001.csv")).unwrap();
@@ -166,7 +170,7 @@ fn a_whole_run_sweep_is_the_same_for_any_jobs_sharding_and_resumption() {
         "run 1 was not redone"
     );
     assert!(!one.join("runs/.000002.partial-1").exists());
-    assert_same_tree(&one, &merged);
+    assert_same_tree(one, &merged);
 }
 
 #[test]
