@@ -26,6 +26,7 @@ pub mod report;
 pub mod roadmap;
 mod sampling;
 pub mod select;
+mod table;
 pub mod team;
 pub mod validate;
 pub mod visibility;
@@ -36,6 +37,7 @@ pub use parent::{HatTracker, ParentParams, ParentStack};
 pub use report::{
     median, DatabaseImage, OdometryHop, TeamReport, TourReport, TrackedPath, TEAM_ARTIFACT,
 };
+pub use table::{CoverageTable, PlannedTeam};
 pub use team::{ChildParams, ChildStack};
 pub use validate::validate;
 pub use visibility::Visibility;

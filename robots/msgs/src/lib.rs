@@ -19,6 +19,7 @@ mod check;
 mod command;
 mod geometry;
 mod message;
+pub mod params;
 mod stack;
 
 pub use camera::{mount_to_optical, CameraGeometry, Pinhole};

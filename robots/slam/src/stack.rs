@@ -77,7 +77,7 @@ mod params;
 pub use params::{EdgeDrift, SlamParams};
 
 mod tuning;
-pub use tuning::{Bound, SlamTuning};
+pub use tuning::SlamTuning;
 
 mod places;
 pub use places::PLACE_TOPIC;

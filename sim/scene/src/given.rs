@@ -5,7 +5,7 @@
 //! parent carries the laser, the children wear hats).
 
 use crate::{ResolvedRobot, Scenario, Sensor};
-use hetsim_coverage::{CoverageParams, Direction, Reading, ViewRule};
+use hetsim_coverage::{CoverageParams, PlannedTeam};
 
 /// A robot's (first) stereo bench, as the robot file declares it.
 #[derive(Clone, Debug, PartialEq)]
@@ -52,7 +52,6 @@ pub fn stereo_bench(robot: &ResolvedRobot) -> Option<StereoBench> {
 
 /// Planning parameters from the scenario's `[coverage]` table and its robots.
 pub fn coverage_params(scenario: &Scenario) -> CoverageParams {
-    let spec = scenario.file.coverage.clone().unwrap_or_default();
     // The parent is the robot with the laser, the children the robots with hats.
     let radius = |role: fn(&crate::RobotModel) -> bool, default: f64| {
         scenario
@@ -63,36 +62,19 @@ pub fn coverage_params(scenario: &Scenario) -> CoverageParams {
                 r.model.body.length_m.max(r.model.body.width_m) / 2.0
             })
     };
-    let direction = match spec.direction.as_str() {
-        "north" => Direction::North,
-        "west" => Direction::West,
-        "south" => Direction::South,
-        _ => Direction::East,
-    };
-    CoverageParams {
-        r_los_m: spec.r_los_m,
-        direction,
-        child_fov_deg: spec.child_fov_deg,
-        view_margin_deg: spec.view_margin_deg,
-        view_margin_m: spec.view_margin_m,
+    let team = PlannedTeam {
         parent_radius_m: radius(crate::RobotModel::has_laser, 0.225),
         child_radius_m: radius(crate::RobotModel::is_tracked_child, 0.06),
-        children: spec
-            .children
-            .unwrap_or_else(|| {
-                scenario
-                    .robots
-                    .iter()
-                    .filter(|r| r.model.is_tracked_child())
-                    .count()
-            })
-            .max(1),
-        f_factor: spec.f_factor,
-        views: match spec.views.as_str() {
-            "start_points" => ViewRule::StartPoints,
-            _ => ViewRule::EveryGrab,
-        },
-        // Checked when the scenario was loaded.
-        reading: Reading::from_name(&spec.reading).unwrap_or_default(),
-    }
+        children: scenario
+            .robots
+            .iter()
+            .filter(|r| r.model.is_tracked_child())
+            .count(),
+    };
+    scenario
+        .file
+        .coverage
+        .clone()
+        .unwrap_or_default()
+        .params(team)
 }

@@ -8,10 +8,10 @@
 //! the field, the bad value and what is allowed; nothing is run on a refused scenario.
 
 mod check;
-mod coverage_spec;
 mod error;
 mod given;
 mod load;
+mod params;
 mod robot;
 mod scenario;
 mod source;
@@ -24,11 +24,11 @@ pub use load::{
     load_robot_model, load_scenario, load_scenario_text, LoadOptions, ResolvedRobot, Scenario,
 };
 pub use robot::{
-    camera_geometry, Body, DriveKind, Helicopter, Mount, Pilot, RobotModel, Sensor, SlamTuning,
-    SteeringKind, Wheels, HAT_SCALE, HAT_THICKNESS_M,
+    camera_geometry, Body, DriveKind, Helicopter, Mount, PilotTable, RobotModel, Sensor,
+    SlamTuning, SteeringKind, Wheels, HAT_SCALE, HAT_THICKNESS_M,
 };
 pub use scenario::{
-    BoxSpec, CommsSpec, CoverageSpec, IndoorSpec, MissionSpec, RobotSpec, ScenarioFile, Start,
+    BoxSpec, CommsSpec, CoverageTable, IndoorSpec, MissionSpec, RobotSpec, ScenarioFile, Start,
     VillageSpec, WorldKind, WorldSpec,
 };
 pub use source::{Source, SCHEMA_VERSION};

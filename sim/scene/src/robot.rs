@@ -6,9 +6,9 @@
 
 use serde::{Deserialize, Serialize};
 
-mod slam;
 mod validate;
 
+pub use hetsim_pilot::{PilotTable, SteeringKind};
 pub use hetsim_slam::stack::SlamTuning;
 
 /// A robot description.
@@ -25,7 +25,7 @@ pub struct RobotModel {
     /// Shape, mass and drive.
     pub body: Body,
     /// Parameters of the robot's waypoint follower.
-    pub pilot: Pilot,
+    pub pilot: PilotTable,
     /// The robot's sensors.
     #[serde(default)]
     pub sensors: Vec<Sensor>,
@@ -114,45 +114,12 @@ pub struct Helicopter {
     pub climb_time_constant_s: f64,
 }
 
-/// Steering behaviour of the waypoint follower.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum SteeringKind {
-    /// Turn while driving.
-    Smooth,
-    /// Rotate in place, drive straight, re-aim near the goal (the c't-Bots).
-    RotateThenDrive,
-}
-
-/// Waypoint-follower parameters.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct Pilot {
-    /// Speed when on course, metres per second.
-    pub cruise_mps: f64,
-    /// A waypoint counts as reached within this distance, metres.
-    pub arrive_m: f64,
-    /// Steering behaviour (ground robots).
-    #[serde(default = "default_steering")]
-    pub steering: SteeringKind,
-    /// Re-aim distance for `rotate_then_drive`, metres (0.2 m in the seed).
-    #[serde(default)]
-    pub reaim_m: Option<f64>,
-    /// Heading error accepted before driving straight, degrees.
-    #[serde(default)]
-    pub aim_tolerance_deg: Option<f64>,
-}
-
 fn unit_gain() -> f64 {
     1.0
 }
 
 fn default_tracked_model() -> String {
     "ctbot".to_string()
-}
-
-fn default_steering() -> SteeringKind {
-    SteeringKind::Smooth
 }
 
 /// Where a sensor sits on the body.

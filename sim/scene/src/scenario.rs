@@ -1,8 +1,8 @@
 //! Scenario files (`scenarios/*.toml`): the world, the robots placed in it and their missions.
 
 use crate::check::Checker;
-pub use crate::coverage_spec::CoverageSpec;
 use crate::SceneError;
+pub use hetsim_coverage::CoverageTable;
 use serde::{Deserialize, Serialize};
 
 /// A scenario as written in its file.
@@ -35,7 +35,7 @@ pub struct ScenarioFile {
     pub robots: Vec<RobotSpec>,
     /// Cooperative coverage mapping parameters (indoor worlds).
     #[serde(default)]
-    pub coverage: Option<CoverageSpec>,
+    pub coverage: Option<CoverageTable>,
     /// The radio between robots.
     #[serde(default)]
     pub comms: CommsSpec,
@@ -394,7 +394,6 @@ impl ScenarioFile {
             }
         }
         if let Some(cov) = &self.coverage {
-            let at = |f: &'static str| ["coverage", f];
             if self.world.kind != WorldKind::IndoorGrid {
                 return Err(c.error_at(
                     &["coverage"],
@@ -402,33 +401,11 @@ impl ScenarioFile {
                     "a [coverage] table only in an indoor_grid world",
                 ));
             }
-            c.range(&at("r_los_m"), cov.r_los_m, 0.1, 100.0)?;
-            c.range(&at("child_fov_deg"), cov.child_fov_deg, 1.0, 179.0)?;
-            c.range(&at("view_margin_deg"), cov.view_margin_deg, 0.0, 45.0)?;
-            c.range(&at("view_margin_m"), cov.view_margin_m, 0.0, 0.5)?;
-            c.range(&at("f_factor"), cov.f_factor, 0.5, 10.0)?;
-            if !["east", "north", "west", "south"].contains(&cov.direction.as_str()) {
-                return Err(c.error_at(
-                    &at("direction"),
-                    format!("\"{}\"", cov.direction),
-                    "one of \"east\", \"north\", \"west\", \"south\"",
-                ));
-            }
-            if let Some(n) = cov.children {
-                c.range(&at("children"), n as f64, 1.0, 32.0)?;
-            }
-            c.range(
-                &at("localize_steps"),
-                cov.localize_steps as f64,
-                0.0,
-                1000.0,
-            )?;
             let parent = self
                 .robots
                 .iter()
                 .find(|r| matches!(r.mission, MissionSpec::CoverageParent));
-            cov.check_views(c, parent.map(|r| r.name.as_str()))?;
-            cov.check_reading(c, parent.map(|r| r.name.as_str()))?;
+            crate::params::check(c, &["coverage"], cov.rules(parent.map(|r| r.name.as_str())))?;
         }
         let at = |f: &'static str| ["comms", f];
         c.positive(&at("range_m"), self.comms.range_m)?;

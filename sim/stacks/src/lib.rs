@@ -12,12 +12,10 @@
 
 use hetsim_core::Streams;
 use hetsim_msgs::{Mission, RobotStack};
-use hetsim_pilot::{
-    lawnmower, GroundPilot, GroundPilotParams, HeliPilot, HeliPilotParams, Steering,
-};
+use hetsim_pilot::{lawnmower, GroundPilot, GroundPilotParams, HeliPilot, HeliPilotParams};
 use hetsim_scene::{
     coverage_params, stereo_bench, DriveKind, MissionSpec, ResolvedRobot, Scenario, Sensor,
-    SteeringKind, StereoBench,
+    StereoBench,
 };
 
 /// One stack per robot of the scenario, in scenario order; the SLAM stacks open loop (no
@@ -132,22 +130,13 @@ fn ground_params(robot: &ResolvedRobot) -> GroundPilotParams {
         .wheels
         .as_ref()
         .expect("validated wheeled robot has [body.wheels]");
-    let steering = match pilot.steering {
-        SteeringKind::Smooth => Steering::Smooth {
-            turn_in_place_rad: 60f64.to_radians(),
-        },
-        SteeringKind::RotateThenDrive => Steering::RotateThenDrive {
-            reaim_m: pilot.reaim_m.unwrap_or(0.2),
-            aim_tolerance_rad: pilot.aim_tolerance_deg.unwrap_or(2.0).to_radians(),
-        },
-    };
     GroundPilotParams {
         track_m: w.track_m,
         max_wheel_mps: model.body.max_speed_mps,
         cruise_mps: pilot.cruise_mps,
         max_yaw_rate_radps: model.body.max_yaw_rate_deg_s.to_radians(),
         arrive_m: pilot.arrive_m,
-        steering,
+        steering: pilot.steering(),
     }
 }
 
@@ -192,7 +181,7 @@ fn coverage_stack(
                     track_m: w.track_m,
                     speed_mps: model.pilot.cruise_mps,
                     max_turn_radps: model.body.max_yaw_rate_deg_s.to_radians().min(1.0),
-                    aim_tolerance_rad: model.pilot.aim_tolerance_deg.unwrap_or(2.0).to_radians(),
+                    aim_tolerance_rad: model.pilot.aim_tolerance_rad(),
                     settle_ns: 200_000_000,
                     // Its particle filters' random numbers: the stream `<robot>/pf`.
                     seed: rand::Rng::next_u64(

@@ -164,6 +164,40 @@ fn no_code_compares_robot_models_by_name_and_evaluation_calls_no_stacks() {
 }
 
 #[test]
+fn robot_crates_own_their_tables_and_the_loader_and_stacks_keep_no_copy() {
+    // The fields of a robot file's [slam] and [pilot] and a scenario's [coverage] are
+    // declared once, in the crate whose software they set; the loader (hetsim-scene) and
+    // the crate that builds the stacks declare none of them again.
+    let mut fields = BTreeSet::new();
+    let names = |v: serde_json::Value| -> Vec<String> {
+        v.as_object().expect("a table").keys().cloned().collect()
+    };
+    fields.extend(names(
+        serde_json::to_value(hetsim_slam::stack::SlamTuning::default()).unwrap(),
+    ));
+    fields.extend(names(
+        serde_json::to_value(hetsim_coverage::CoverageTable::default()).unwrap(),
+    ));
+    let pilot: hetsim_scene::PilotTable =
+        serde_json::from_str(r#"{"cruise_mps": 1.0, "arrive_m": 0.5}"#).unwrap();
+    fields.extend(names(serde_json::to_value(pilot).unwrap()));
+    assert!(fields.len() >= 20 && fields.contains("sigma_px") && fields.contains("reaim_m"));
+    for dir in ["sim/scene", "sim/stacks"] {
+        for f in sources(&repo().join(dir)) {
+            let text = std::fs::read_to_string(&f).unwrap();
+            let code = non_test_code(&text);
+            for field in &fields {
+                assert!(
+                    !code.contains(&format!("pub {field}:")),
+                    "{} declares `{field}`, a field of a table a robot crate owns",
+                    f.display()
+                );
+            }
+        }
+    }
+}
+
+#[test]
 fn no_library_function_returns_a_string_error() {
     // Errors are typed (thiserror enums with their fields), so a caller can match on them;
     // only the binary (anyhow) turns them into text.

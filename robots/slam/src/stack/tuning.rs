@@ -3,9 +3,10 @@
 //! ([`SlamParams::ground`], [`SlamParams::aerial`]). It is what a parameter study changes, in
 //! a scenario's `overrides`, a sweep's axes or `hetsim replay --set`. This crate owns the
 //! fields, what each may be and how each sets [`SlamParams`]; the scenario loader reads the
-//! table into this struct and checks it with [`SlamTuning::bounds`].
+//! table into this struct and checks it with [`SlamTuning::rules`].
 
 use super::SlamParams;
+use hetsim_msgs::params::Rule;
 use serde::{Deserialize, Serialize};
 
 /// Tuning of the SLAM software.
@@ -43,31 +44,13 @@ pub struct SlamTuning {
     pub vo_covariance_scale: Option<f64>,
 }
 
-/// A given value and the closed range it must lie in.
-#[derive(Clone, Debug, PartialEq)]
-pub struct Bound {
-    /// The field, with an element index for arrays (`["edge_drift_translation", "1"]`).
-    pub field: Vec<String>,
-    /// The value given.
-    pub value: f64,
-    /// Smallest allowed.
-    pub lo: f64,
-    /// Largest allowed.
-    pub hi: f64,
-}
-
 impl SlamTuning {
     /// Every value given, each with its allowed range (`lines`, a switch, has none).
-    pub fn bounds(&self) -> Vec<Bound> {
+    pub fn rules(&self) -> Vec<Rule> {
         let one = |field: &str, value: Option<f64>, lo: f64, hi: f64| {
-            value.map(|value| Bound {
-                field: vec![field.to_string()],
-                value,
-                lo,
-                hi,
-            })
+            value.map(|value| Rule::range(field, value, lo, hi))
         };
-        let mut out: Vec<Bound> = [
+        let mut out: Vec<Rule> = [
             one("sigma_px", self.sigma_px, 0.01, 100.0),
             one(
                 "max_landmarks",
@@ -92,7 +75,7 @@ impl SlamTuning {
             ),
         ] {
             for (i, v) in values.iter().flatten().enumerate() {
-                out.push(Bound {
+                out.push(Rule::Range {
                     field: vec![field.to_string(), i.to_string()],
                     value: *v,
                     lo: 0.0,
@@ -145,7 +128,7 @@ mod tests {
         let mut p = seed.clone();
         SlamTuning::default().apply(&mut p);
         assert_eq!(p, seed);
-        assert!(SlamTuning::default().bounds().is_empty());
+        assert!(SlamTuning::default().rules().is_empty());
         let t: SlamTuning =
             serde_json::from_str(r#"{"sigma_px": 0.7, "edge_drift_translation": [0.1, 0.2, 0.3]}"#)
                 .unwrap();
@@ -153,7 +136,7 @@ mod tests {
         assert_eq!(p.sigma_px, 0.7);
         assert_eq!(p.edge_drift.translation, [0.1, 0.2, 0.3]);
         assert_eq!(p.max_landmarks, seed.max_landmarks);
-        let fields: Vec<Vec<String>> = t.bounds().into_iter().map(|b| b.field).collect();
+        let fields: Vec<Vec<String>> = t.rules().iter().map(|r| r.field().to_vec()).collect();
         assert_eq!(fields[0], ["sigma_px"]);
         assert_eq!(fields[3], ["edge_drift_translation", "2"]);
         assert!(

@@ -104,35 +104,9 @@ impl RobotModel {
                 }
             }
         }
-        slam::validate(&self.slam, c)?;
-        let p = &self.pilot;
-        c.range(
-            &["pilot", "cruise_mps"],
-            p.cruise_mps,
-            1e-3,
-            b.max_speed_mps,
-        )?;
-        c.positive(&["pilot", "arrive_m"], p.arrive_m)?;
-        if p.steering == SteeringKind::RotateThenDrive {
-            let reaim = p.reaim_m.ok_or_else(|| {
-                c.error(
-                    &["pilot"],
-                    "pilot.reaim_m",
-                    "(missing)",
-                    "a positive distance in metres for rotate_then_drive steering",
-                )
-            })?;
-            c.positive(&["pilot", "reaim_m"], reaim)?;
-            let tol = p.aim_tolerance_deg.ok_or_else(|| {
-                c.error(
-                    &["pilot"],
-                    "pilot.aim_tolerance_deg",
-                    "(missing)",
-                    "an angle in (0, 45] degrees for rotate_then_drive steering",
-                )
-            })?;
-            c.range(&["pilot", "aim_tolerance_deg"], tol, 1e-3, 45.0)?;
-        }
+        // The SLAM's and the pilot's tables, by their own crates' rules.
+        crate::params::check(c, &["slam"], self.slam.rules())?;
+        crate::params::check(c, &["pilot"], self.pilot.rules(b.max_speed_mps))?;
         let mut names = std::collections::BTreeSet::new();
         for (i, sensor) in self.sensors.iter().enumerate() {
             let idx = i.to_string();
