@@ -6,6 +6,15 @@
 //! for a message in a chunk the chunk's offset and the message's index. The whole file's
 //! framing is checked when it is opened, so a truncated recording is refused before replay
 //! starts; a flipped byte inside a chunk is caught by the chunk's CRC when replay reaches it.
+//!
+//! Why the framing is read here and not by the `mcap` crate's streaming reader
+//! (`mcap::sans_io::LinearReader`, 0.26): that reader checks the same CRCs and limits, but
+//! its errors do not say where in the file they are (it exposes no position), and it meets a
+//! truncated file only at its end, after replaying everything before. A researcher handed a
+//! damaged 14 GB recording needs the byte and the record (the refusals above; the replay
+//! tests check them), and a refusal before the run starts. The records themselves are parsed
+//! by the crate (`mcap::parse_record`); what is ours is finding them (9-byte headers), the
+//! chunk's decompression with its size limit, and the CRCs, about 150 lines.
 
 use crate::cdr_in::{self, Decoded};
 use crate::record::{OUTCOME_METADATA, RUN_METADATA};
