@@ -166,8 +166,8 @@ fn encoder() -> &'static Encoder {
 pub(crate) fn encode(linear: f32) -> u8 {
     let e = encoder();
     let l = linear.clamp(0.0, 1.0);
-    // The bucket below the value's: `l * BUCKETS` may round up across a bucket's edge.
-    let bucket = ((l * BUCKETS as f32) as usize).saturating_sub(1);
+    // Scaling by a power of two is exact, so the bucket's lower end is at or below `l`.
+    let bucket = (l * BUCKETS as f32) as usize;
     let mut k = e.start[bucket] as usize;
     while k < 255 && e.midpoints[k] < l {
         k += 1;
@@ -466,6 +466,8 @@ mod tests {
     #[test]
     fn encoding_is_the_binary_search_s_at_every_midpoint_bucket_edge_and_between() {
         let e = encoder();
+        // The walk counts midpoints below the value only because they ascend.
+        assert!(e.midpoints.windows(2).all(|w| w[0] < w[1]));
         // Each midpoint and bucket edge and the 8 floats either side, where a walk that
         // starts too late or stops too early would show; then a dense sweep of [0, 1] and
         // what lies outside it.

@@ -33,9 +33,10 @@ impl SharedRun {
 }
 
 /// `hetsim run scenarios/lab.toml --backend vulkan --record ...` on one worker thread (the
-/// thread count golden's Vulkan runs use). Made in the target folder's test scratch space,
-/// emptied first: the replay test deletes the recording (2.2 GB) once it has read it, and a
-/// filtered run that never reaches it leaves it there until the next test process.
+/// thread count golden's Vulkan runs use). Made in the target folder's test scratch space:
+/// the replay test deletes the recording (2.2 GB) once it has read it; a run that never
+/// reaches it (filtered, or failed) leaves it until the next test process. The recording
+/// costs golden's own Vulkan run about 80 s of CPU, the replay test's run (180 s) saved.
 pub fn recorded_lab_on_vulkan() -> &'static SharedRun {
     static RUN: OnceLock<SharedRun> = OnceLock::new();
     RUN.get_or_init(|| {
@@ -84,8 +85,10 @@ pub fn lab_sweep_file() -> &'static Path {
 /// rows and that shards, jobs and resumption give this folder; `slurm` that the cluster
 /// gives it. Read only: a test that changes it works on a copy.
 pub fn lab_sweep_one_job() -> &'static Path {
-    static FOLDER: OnceLock<PathBuf> = OnceLock::new();
-    FOLDER.get_or_init(|| {
+    // The outcome is kept, success or not: a failed sweep fails every test that reads it
+    // without running it again.
+    static FOLDER: OnceLock<(PathBuf, Output)> = OnceLock::new();
+    let (folder, out) = FOLDER.get_or_init(|| {
         let folder = fresh_dir("shared-lab-sweep-jobs1").join("jobs1");
         let out = hetsim(
             &[
@@ -98,19 +101,34 @@ pub fn lab_sweep_one_job() -> &'static Path {
             ],
             &[],
         );
-        assert!(
-            out.status.success(),
-            "the shared lab sweep: {}{}",
-            String::from_utf8_lossy(&out.stdout),
-            String::from_utf8_lossy(&out.stderr)
-        );
-        folder
-    })
+        (folder, out)
+    });
+    assert!(
+        out.status.success(),
+        "the shared lab sweep: {}{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    folder
 }
 
-/// `name` in the target folder's test scratch space, emptied.
+/// `name` in the target folder's test scratch space, emptied, for this test process alone
+/// (`<name>-<pid>`: two test processes on one target folder keep apart). Folders of the
+/// same name left by processes that have ended (a recording 2.2 GB) are removed first.
 fn fresh_dir(name: &str) -> PathBuf {
-    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(name);
+    let scratch = PathBuf::from(env!("CARGO_TARGET_TMPDIR"));
+    let prefix = format!("{name}-");
+    for entry in std::fs::read_dir(&scratch).into_iter().flatten().flatten() {
+        let file_name = entry.file_name().to_string_lossy().into_owned();
+        let ended = file_name
+            .strip_prefix(&prefix)
+            .and_then(|pid| pid.parse::<u32>().ok())
+            .is_some_and(|pid| !Path::new(&format!("/proc/{pid}")).exists());
+        if ended {
+            let _ = std::fs::remove_dir_all(entry.path());
+        }
+    }
+    let dir = scratch.join(format!("{prefix}{}", std::process::id()));
     if dir.exists() {
         std::fs::remove_dir_all(&dir).unwrap_or_else(|e| panic!("{}: {e}", dir.display()));
     }
