@@ -124,10 +124,39 @@ impl PixelNoise {
     /// twelve draws instead of one per channel. The same bits reach the same channels as in
     /// [`PixelNoise::apply`]'s general path (a test compares the two).
     fn add_rounded_rgba(&self, src: &[u8], bits: &mut SplitMix64) -> Vec<u8> {
-        let pixels = src.len() / 4;
-        let mut rgb = vec![0u8; pixels * 3];
+        let mut rgb = vec![0u8; src.len() / 4 * 3];
+        self.add_rounded_rgba_into(src, bits, &mut rgb);
+        rgb
+    }
+
+    /// [`PixelNoise::add_rounded_rgba`] into grey bytes: the noisy RGB of 1024 pixels at a
+    /// time, in a buffer that stays in the L1 cache, reduced by `luminance` (the stereo
+    /// benches' mono8: no 2.4 MB RGB image written and read back). Every run but the last
+    /// is a whole number of four-pixel blocks, so the draws are those of one pass.
+    fn add_rounded_rgba_grey(
+        &self,
+        src: &[u8],
+        bits: &mut SplitMix64,
+        luminance: impl Fn([u8; 3]) -> u8,
+    ) -> Vec<u8> {
+        const RUN: usize = 1024;
+        let mut grey = vec![0u8; src.len() / 4];
+        let mut rgb = vec![0u8; RUN * 3];
+        for (run, out) in src.chunks(RUN * 4).zip(grey.chunks_mut(RUN)) {
+            let rgb = &mut rgb[..out.len() * 3];
+            self.add_rounded_rgba_into(run, bits, rgb);
+            for (g, p) in out.iter_mut().zip(rgb.chunks_exact(3)) {
+                *g = luminance([p[0], p[1], p[2]]);
+            }
+        }
+        grey
+    }
+
+    /// The RGBA unit-gain loop, into `rgb` (three bytes for each of `src`'s pixels).
+    fn add_rounded_rgba_into(&self, src: &[u8], bits: &mut SplitMix64, rgb: &mut [u8]) {
         let mut out = rgb.chunks_exact_mut(12);
         let mut inp = src.chunks_exact(16);
+        let table: &[i16; LEVELS] = self.rounded[..].try_into().expect("LEVELS cells");
         for (o, i) in (&mut out).zip(&mut inp) {
             let words = [bits.next(), bits.next(), bits.next()];
             let tails = words.iter().any(|&w| has_tail_draw(w));
@@ -141,7 +170,6 @@ impl PixelNoise {
                     o[j] = self.add_rounded(i[SRC[j]], draw);
                 }
             } else {
-                let table: &[i16; LEVELS] = self.rounded[..].try_into().expect("LEVELS cells");
                 for j in 0..12 {
                     let cell = (words[j / 4] >> (16 * (j % 4) + 4)) as usize & (LEVELS - 1);
                     o[j] = (i[SRC[j]] as i16 + table[cell]).clamp(0, 255) as u8;
@@ -161,7 +189,6 @@ impl PixelNoise {
                 last[q * 4 + k] = self.add_rounded(c, (word >> (16 * k)) as u16);
             }
         }
-        rgb
     }
 
     /// `round(clamp(gain c + σ n))` for every colour channel of `src` (pixels of `stride`
@@ -174,6 +201,28 @@ impl PixelNoise {
             self.add_rounded_rgba(src, &mut bits)
         } else {
             self.add_general(src, stride, gain, &mut bits)
+        }
+    }
+
+    /// [`PixelNoise::apply`] reduced to one grey byte a pixel by `luminance`: the same noise
+    /// draws and the same bytes as `apply` followed by `luminance` on each pixel, without the
+    /// RGB image in between where the renderer's RGBA is taken at unit gain.
+    pub fn apply_grey(
+        &self,
+        src: &[u8],
+        stride: usize,
+        gain: f32,
+        rng: &mut impl Rng,
+        luminance: impl Fn([u8; 3]) -> u8,
+    ) -> Vec<u8> {
+        if gain == 1.0 && stride == 4 {
+            let mut bits = SplitMix64(rng.next_u64());
+            self.add_rounded_rgba_grey(src, &mut bits, luminance)
+        } else {
+            self.apply(src, stride, gain, rng)
+                .chunks_exact(3)
+                .map(|p| luminance([p[0], p[1], p[2]]))
+                .collect()
         }
     }
 
@@ -314,6 +363,21 @@ mod fast_path {
         let general = noise.add_general(&src, 4, 1.0, &mut SplitMix64(7));
         assert_eq!(fast.len(), 100_003 * 3);
         assert!(fast == general, "the two paths differ");
+        // The grey path: the same bytes as the RGB ones reduced pixel by pixel, for the fast
+        // path and for the general one (a gain), the three pixels past the last block included.
+        let luminance = hetsim_msgs::PixelEncoding::luminance;
+        for gain in [1.0, 1.3] {
+            let mut a = hetsim_core::Streams::new(3).stream("grey");
+            let mut b = hetsim_core::Streams::new(3).stream("grey");
+            let rgb = noise.apply(&src, 4, gain, &mut a);
+            let grey = noise.apply_grey(&src, 4, gain, &mut b, luminance);
+            let reduced: Vec<u8> = rgb
+                .chunks_exact(3)
+                .map(|p| luminance([p[0], p[1], p[2]]))
+                .collect();
+            assert_eq!(grey.len(), 100_003, "gain {gain}");
+            assert!(grey == reduced, "gain {gain}: the grey path differs");
+        }
         // The comparison reaches the tail cells (one draw in 2048: about 146 expected).
         let mut bits = SplitMix64(7);
         let tails = (0..(100_003 * 3 + 3) / 4)
