@@ -76,35 +76,89 @@ fn floor_of(x: f32) -> f32 {
     r.copysign(x)
 }
 
-/// Smooth value noise at `(x, y)` in lattice units; lattice coordinates wrap at `period`
-/// (0: no wrapping), which makes the noise tile with that period.
-#[inline]
-pub(crate) fn value_noise(x: f32, y: f32, seed: u32, period: i64) -> f32 {
-    let (fx, fy) = (floor_of(x), floor_of(y));
-    let (tx, ty) = (x - fx, y - fy);
-    let (ux, uy) = (tx * tx * (3.0 - 2.0 * tx), ty * ty * (3.0 - 2.0 * ty));
-    let (ix, iy) = (fx as i64, fy as i64);
-    let wrap = |i: i64| if period > 0 { i.rem_euclid(period) } else { i };
-    // The four corners' lattice coordinates, each wrapped once.
-    let (x0, x1, y0, y1) = (wrap(ix), wrap(ix + 1), wrap(iy), wrap(iy + 1));
-    let (h00, h10) = (hash(x0, y0, seed), hash(x1, y0, seed));
-    let (h01, h11) = (hash(x0, y1, seed), hash(x1, y1, seed));
-    let top = h00 + (h10 - h00) * ux;
-    let bottom = h01 + (h11 - h01) * ux;
-    top + (bottom - top) * uy
+/// One value-noise lattice that keeps the hashes of the last cell it was read in: a row of
+/// texels reads each cell of a coarse lattice many times (the terrain's 40 m octave some 200
+/// times at 20 cm a texel), and the four hashes are most of a read's cost. The same
+/// arithmetic as a fresh read, so the same bits (a test compares the two).
+#[derive(Clone)]
+pub(crate) struct Lattice {
+    seed: u32,
+    period: i64,
+    /// The cell `(ix, iy)` the hashes are of, and the hashes of its corners
+    /// `(0,0), (1,0), (0,1), (1,1)`.
+    cell: Option<((i64, i64), [f32; 4])>,
+}
+
+impl Lattice {
+    pub(crate) fn new(seed: u32, period: i64) -> Self {
+        Self {
+            seed,
+            period,
+            cell: None,
+        }
+    }
+
+    /// The noise at `(x, y)`.
+    #[inline]
+    pub(crate) fn at(&mut self, x: f32, y: f32) -> f32 {
+        let (fx, fy) = (floor_of(x), floor_of(y));
+        let (tx, ty) = (x - fx, y - fy);
+        let (ux, uy) = (tx * tx * (3.0 - 2.0 * tx), ty * ty * (3.0 - 2.0 * ty));
+        let (ix, iy) = (fx as i64, fy as i64);
+        let [h00, h10, h01, h11] = match self.cell {
+            Some((cell, h)) if cell == (ix, iy) => h,
+            _ => {
+                let h = self.corners(ix, iy);
+                self.cell = Some(((ix, iy), h));
+                h
+            }
+        };
+        let top = h00 + (h10 - h00) * ux;
+        let bottom = h01 + (h11 - h01) * ux;
+        top + (bottom - top) * uy
+    }
+
+    /// The hashes of cell `(ix, iy)`'s corners, each lattice coordinate wrapped once.
+    #[cold]
+    fn corners(&self, ix: i64, iy: i64) -> [f32; 4] {
+        let period = self.period;
+        let wrap = |i: i64| if period > 0 { i.rem_euclid(period) } else { i };
+        let (x0, x1, y0, y1) = (wrap(ix), wrap(ix + 1), wrap(iy), wrap(iy + 1));
+        let seed = self.seed;
+        [
+            hash(x0, y0, seed),
+            hash(x1, y0, seed),
+            hash(x0, y1, seed),
+            hash(x1, y1, seed),
+        ]
+    }
 }
 
 /// Fractal sum of `octaves` value-noise octaves, amplitudes 1/2, 1/4, ...; frequencies double
-/// (and so does the period), so a tileable base stays tileable.
-pub(crate) fn fbm(x: f32, y: f32, seed: u32, octaves: u32, period: i64) -> f32 {
-    let (mut sum, mut amp, mut f, mut p) = (0.0, 0.5, 1.0, period);
-    for k in 0..octaves {
-        sum += amp * value_noise(x * f, y * f, seed.wrapping_add(k * 101), p);
-        amp *= 0.5;
-        f *= 2.0;
-        p *= 2;
+/// (and so does the period), so a tileable base stays tileable: a [`Lattice`] per octave.
+#[derive(Clone)]
+pub(crate) struct Fbm(Vec<Lattice>);
+
+impl Fbm {
+    pub(crate) fn new(seed: u32, octaves: u32, period: i64) -> Self {
+        Self(
+            (0..octaves)
+                .map(|k| Lattice::new(seed.wrapping_add(k * 101), period << k))
+                .collect(),
+        )
     }
-    sum
+
+    /// The sum at `(x, y)`.
+    #[inline]
+    pub(crate) fn at(&mut self, x: f32, y: f32) -> f32 {
+        let (mut sum, mut amp, mut f) = (0.0, 0.5, 1.0);
+        for octave in &mut self.0 {
+            sum += amp * octave.at(x * f, y * f);
+            amp *= 0.5;
+            f *= 2.0;
+        }
+        sum
+    }
 }
 
 fn smoothstep(a: f32, b: f32, x: f32) -> f32 {
@@ -183,8 +237,15 @@ pub(crate) fn decode(b: u8) -> f32 {
 /// Fills a `side`² colour texture from `f(u, v)` at texel centres (`u`, `v` in [0, 1)), rows
 /// in parallel.
 fn paint(side: u32, f: impl Fn(f32, f32) -> [f32; 3] + Sync) -> Texels {
+    paint_rows(side, || &f)
+}
+
+/// [`paint`] with state along a row: `row()` makes each row's `f` (its noise lattices, which
+/// keep the last cell's hashes), called at the row's texels left to right.
+fn paint_rows<F: FnMut(f32, f32) -> [f32; 3]>(side: u32, row: impl Fn() -> F + Sync) -> Texels {
     let mut rgba = vec![0u8; (side * side * 4) as usize];
-    let row = |(j, out): (usize, &mut [u8])| {
+    let fill = |(j, out): (usize, &mut [u8])| {
+        let mut f = row();
         let v = (j as f32 + 0.5) / side as f32;
         for (i, px) in out.chunks_exact_mut(4).enumerate() {
             let c = f((i as f32 + 0.5) / side as f32, v);
@@ -194,7 +255,7 @@ fn paint(side: u32, f: impl Fn(f32, f32) -> [f32; 3] + Sync) -> Texels {
     };
     rgba.par_chunks_mut(side as usize * 4)
         .enumerate()
-        .for_each(row);
+        .for_each(fill);
     Texels {
         side,
         rgba,
@@ -205,19 +266,26 @@ fn paint(side: u32, f: impl Fn(f32, f32) -> [f32; 3] + Sync) -> Texels {
 /// The terrain texture over `extent_m` metres from `origin` (u along x, v along y).
 pub(crate) fn terrain(origin: [f64; 2], extent_m: f64) -> Texels {
     let (x0, y0, e) = (origin[0] as f32, origin[1] as f32, extent_m as f32);
-    paint(TERRAIN_TEXELS, |u, v| {
-        let (x, y) = (x0 + u * e, y0 + v * e);
-        let broad = fbm(x / 40.0, y / 40.0, 11, 4, 0);
-        let grass = mix([0.26, 0.40, 0.16], [0.47, 0.54, 0.26], broad);
-        let patchy = smoothstep(0.45, 0.62, fbm(x / 12.0, y / 12.0, 37, 4, 0));
-        let mut c = mix(grass, [0.52, 0.41, 0.28], patchy);
-        let bush = smoothstep(0.68, 0.74, value_noise(x / 2.5, y / 2.5, 53, 0));
-        c = mix(c, [0.10, 0.18, 0.07], bush * 0.85);
-        let stone = smoothstep(0.80, 0.84, value_noise(x / 0.6, y / 0.6, 61, 0));
-        c = mix(c, [0.55, 0.53, 0.50], stone);
-        // Tufts at 0.6 and 0.3 m, aperiodic: what the helicopter resolves from 40 m.
-        let tufts = fbm(x / 0.6, y / 0.6, 23, 2, 0) / 0.75;
-        scale(c, 0.6 + 0.8 * tufts)
+    paint_rows(TERRAIN_TEXELS, || {
+        let mut broad = Fbm::new(11, 4, 0);
+        let mut patchy = Fbm::new(37, 4, 0);
+        let mut bush = Lattice::new(53, 0);
+        let mut stone = Lattice::new(61, 0);
+        let mut tufts = Fbm::new(23, 2, 0);
+        move |u, v| {
+            let (x, y) = (x0 + u * e, y0 + v * e);
+            let broad = broad.at(x / 40.0, y / 40.0);
+            let grass = mix([0.26, 0.40, 0.16], [0.47, 0.54, 0.26], broad);
+            let patchy = smoothstep(0.45, 0.62, patchy.at(x / 12.0, y / 12.0));
+            let mut c = mix(grass, [0.52, 0.41, 0.28], patchy);
+            let bush = smoothstep(0.68, 0.74, bush.at(x / 2.5, y / 2.5));
+            c = mix(c, [0.10, 0.18, 0.07], bush * 0.85);
+            let stone = smoothstep(0.80, 0.84, stone.at(x / 0.6, y / 0.6));
+            c = mix(c, [0.55, 0.53, 0.50], stone);
+            // Tufts at 0.6 and 0.3 m, aperiodic: what the helicopter resolves from 40 m.
+            let tufts = tufts.at(x / 0.6, y / 0.6) / 0.75;
+            scale(c, 0.6 + 0.8 * tufts)
+        }
     })
 }
 
@@ -228,22 +296,21 @@ pub(crate) fn detail() -> Texels {
     let tile = DETAIL_TILE_M;
     // Lattices that divide the tile: 15 cm (32 cells), 5 cm (96), 7.5 cm (64).
     let cells = |m: f32| (tile / m).round() as i64;
-    let mut t = paint(side, |u, v| {
-        let n = fbm(
-            u * cells(0.15) as f32,
-            v * cells(0.15) as f32,
-            29,
-            4,
-            cells(0.15),
-        ) / 0.94;
-        let mut m = 0.55 + 0.9 * (0.5 + 2.2 * (n - 0.5)).clamp(0.0, 1.0);
-        let (pu, pv) = (u * cells(0.05) as f32, v * cells(0.05) as f32);
-        let pebble = smoothstep(0.72, 0.80, value_noise(pu, pv, 31, cells(0.05)));
-        m += (1.5 - m) * 0.8 * pebble;
-        let (cu, cv) = (u * cells(0.075) as f32, v * cells(0.075) as f32);
-        let crevice = smoothstep(0.27, 0.2, value_noise(cu, cv, 37, cells(0.075)));
-        m *= 1.0 - 0.5 * crevice;
-        [0.5 * m.powf(1.0 / GAMMA as f32); 3]
+    let mut t = paint_rows(side, || {
+        let mut grain = Fbm::new(29, 4, cells(0.15));
+        let mut pebbles = Lattice::new(31, cells(0.05));
+        let mut crevices = Lattice::new(37, cells(0.075));
+        move |u, v| {
+            let n = grain.at(u * cells(0.15) as f32, v * cells(0.15) as f32) / 0.94;
+            let mut m = 0.55 + 0.9 * (0.5 + 2.2 * (n - 0.5)).clamp(0.0, 1.0);
+            let (pu, pv) = (u * cells(0.05) as f32, v * cells(0.05) as f32);
+            let pebble = smoothstep(0.72, 0.80, pebbles.at(pu, pv));
+            m += (1.5 - m) * 0.8 * pebble;
+            let (cu, cv) = (u * cells(0.075) as f32, v * cells(0.075) as f32);
+            let crevice = smoothstep(0.27, 0.2, crevices.at(cu, cv));
+            m *= 1.0 - 0.5 * crevice;
+            [0.5 * m.powf(1.0 / GAMMA as f32); 3]
+        }
     });
     // Values, not colours: store them as they are, not encoded.
     for px in t.rgba.chunks_exact_mut(4) {
@@ -276,33 +343,36 @@ fn facade(variant: u32) -> Texels {
         [0.70, 0.66, 0.60],
         0.85 + 0.3 * hash(variant as i64, 7, seed),
     );
-    paint(LAYER_TEXELS, |u, v| {
-        let (x, y) = (u * tile, (1.0 - v) * tile);
-        let stain = 0.85 + 0.25 * fbm(x / 1.6, y / 4.0, seed + 5, 4, 10);
-        let (cx, cy) = ((x / bay).floor() as i64, (y / storey).floor() as i64);
-        let (lx, ly) = ((x / bay).fract(), (y / storey).fract());
-        let r = hash(cx, cy, seed);
-        let mut c = scale(base, stain);
-        if cy == 0 && r > 0.8 {
-            if lx > 0.3 && lx < 0.7 && ly < 0.75 {
-                c = [0.30, 0.18, 0.10];
+    paint_rows(LAYER_TEXELS, || {
+        let mut stain = Fbm::new(seed + 5, 4, 10);
+        move |u, v| {
+            let (x, y) = (u * tile, (1.0 - v) * tile);
+            let stain = 0.85 + 0.25 * stain.at(x / 1.6, y / 4.0);
+            let (cx, cy) = ((x / bay).floor() as i64, (y / storey).floor() as i64);
+            let (lx, ly) = ((x / bay).fract(), (y / storey).fract());
+            let r = hash(cx, cy, seed);
+            let mut c = scale(base, stain);
+            if cy == 0 && r > 0.8 {
+                if lx > 0.3 && lx < 0.7 && ly < 0.75 {
+                    c = [0.30, 0.18, 0.10];
+                }
+            } else if r > 0.25 {
+                let j = 0.08 * (hash(cx + 9, cy, seed) - 0.5);
+                let inside = lx > 0.25 + j && lx < 0.75 + j && ly > 0.3 && ly < 0.8;
+                let frame = lx > 0.22 + j && lx < 0.78 + j && ly > 0.27 && ly < 0.83;
+                if inside {
+                    let g = 0.15 * hash(cx * 3, cy * 3, seed + 1);
+                    c = [0.15 + g, 0.20 + g, 0.28 + g];
+                } else if frame {
+                    c = [0.92, 0.92, 0.90];
+                }
             }
-        } else if r > 0.25 {
-            let j = 0.08 * (hash(cx + 9, cy, seed) - 0.5);
-            let inside = lx > 0.25 + j && lx < 0.75 + j && ly > 0.3 && ly < 0.8;
-            let frame = lx > 0.22 + j && lx < 0.78 + j && ly > 0.27 && ly < 0.83;
-            if inside {
-                let g = 0.15 * hash(cx * 3, cy * 3, seed + 1);
-                c = [0.15 + g, 0.20 + g, 0.28 + g];
-            } else if frame {
-                c = [0.92, 0.92, 0.90];
+            // A darker plinth: a horizontal edge for the line detector.
+            if y < 0.4 {
+                c = scale(c, 0.6);
             }
+            c
         }
-        // A darker plinth: a horizontal edge for the line detector.
-        if y < 0.4 {
-            c = scale(c, 0.6);
-        }
-        c
     })
 }
 
@@ -315,16 +385,19 @@ fn roof(variant: u32) -> Texels {
     } else {
         [0.33, 0.30, 0.28]
     };
-    paint(LAYER_TEXELS, |u, v| {
-        let (x, y) = (u * tile, v * tile);
-        let row = (y / 0.32).floor() as i64;
-        let shift = if row % 2 == 0 { 0.0 } else { 0.2 };
-        let col = ((x + shift) / 0.4).floor() as i64;
-        let (lx, ly) = (((x + shift) / 0.4).fract(), (y / 0.32).fract());
-        let shade = 0.7 + 0.5 * fbm(x * 0.75, y * 0.75, seed, 3, 12);
-        let own = 0.8 + 0.4 * hash(col.rem_euclid(40), row.rem_euclid(50), seed);
-        let joint = if lx < 0.06 || ly < 0.08 { 0.45 } else { 1.0 };
-        scale(base, shade * own * joint)
+    paint_rows(LAYER_TEXELS, || {
+        let mut shade = Fbm::new(seed, 3, 12);
+        move |u, v| {
+            let (x, y) = (u * tile, v * tile);
+            let row = (y / 0.32).floor() as i64;
+            let shift = if row % 2 == 0 { 0.0 } else { 0.2 };
+            let col = ((x + shift) / 0.4).floor() as i64;
+            let (lx, ly) = (((x + shift) / 0.4).fract(), (y / 0.32).fract());
+            let shade = 0.7 + 0.5 * shade.at(x * 0.75, y * 0.75);
+            let own = 0.8 + 0.4 * hash(col.rem_euclid(40), row.rem_euclid(50), seed);
+            let joint = if lx < 0.06 || ly < 0.08 { 0.45 } else { 1.0 };
+            scale(base, shade * own * joint)
+        }
     })
 }
 
@@ -336,38 +409,44 @@ fn indoor(variant: u32, skirting: bool) -> Texels {
     // An integer wave vector (cycles per tile) keeps the stripes tileable: 1-5 per metre.
     let a = 1 + (hash(1, 1, seed) * 16.0) as i64;
     let b = (hash(2, 2, seed) * 12.0) as i64 - 6;
-    paint(LAYER_TEXELS, |u, v| {
-        let (x, y) = (u * tile, (1.0 - v) * tile);
-        let stripes = if (a as f32 * u + b as f32 * v).fract() < 0.5 {
-            1.0
-        } else {
-            0.56
-        };
-        let mut c = [stripes; 3];
-        let (cx, cy) = ((x / 0.8).floor() as i64, (y / 0.8).floor() as i64);
-        let (lx, ly) = ((x / 0.8).fract(), (y / 0.8).fract());
-        if hash(cx, cy, seed + 17) > 0.6 && lx > 0.2 && lx < 0.8 && ly > 0.25 && ly < 0.75 {
-            c = [1, 2, 3].map(|k| 0.3 + 1.2 * hash(cx, cy, seed + k));
+    paint_rows(LAYER_TEXELS, || {
+        let mut grain = Fbm::new(seed, 3, 24);
+        move |u, v| {
+            let (x, y) = (u * tile, (1.0 - v) * tile);
+            let stripes = if (a as f32 * u + b as f32 * v).fract() < 0.5 {
+                1.0
+            } else {
+                0.56
+            };
+            let mut c = [stripes; 3];
+            let (cx, cy) = ((x / 0.8).floor() as i64, (y / 0.8).floor() as i64);
+            let (lx, ly) = ((x / 0.8).fract(), (y / 0.8).fract());
+            if hash(cx, cy, seed + 17) > 0.6 && lx > 0.2 && lx < 0.8 && ly > 0.25 && ly < 0.75 {
+                c = [1, 2, 3].map(|k| 0.3 + 1.2 * hash(cx, cy, seed + k));
+            }
+            if skirting && y < 0.1 {
+                c = [0.25; 3];
+            }
+            scale(c, 0.85 + 0.3 * grain.at(x * 6.0, y * 6.0))
         }
-        if skirting && y < 0.1 {
-            c = [0.25; 3];
-        }
-        scale(c, 0.85 + 0.3 * fbm(x * 6.0, y * 6.0, seed, 3, 24))
     })
 }
 
 /// Floor tiles of 0.5 m in two shades, with noise.
 fn floor() -> Texels {
     let tile = INDOOR_TILE_M as f32;
-    paint(LAYER_TEXELS, |u, v| {
-        let (x, y) = (u * tile, v * tile);
-        let checker = ((x / 0.5).floor() as i64 + (y / 0.5).floor() as i64) & 1;
-        let base = if checker == 1 {
-            [0.52, 0.50, 0.47]
-        } else {
-            [0.62, 0.60, 0.56]
-        };
-        scale(base, 0.85 + 0.3 * fbm(x * 2.0, y * 2.0, 71, 5, 8))
+    paint_rows(LAYER_TEXELS, || {
+        let mut grain = Fbm::new(71, 5, 8);
+        move |u, v| {
+            let (x, y) = (u * tile, v * tile);
+            let checker = ((x / 0.5).floor() as i64 + (y / 0.5).floor() as i64) & 1;
+            let base = if checker == 1 {
+                [0.52, 0.50, 0.47]
+            } else {
+                [0.62, 0.60, 0.56]
+            };
+            scale(base, 0.85 + 0.3 * grain.at(x * 2.0, y * 2.0))
+        }
     })
 }
 
@@ -523,6 +602,61 @@ mod tests {
     fn gamma_encoding_round_trips_every_byte() {
         for b in 0..=255u8 {
             assert_eq!(encode(decode(b)), b);
+        }
+    }
+
+    /// Value noise read afresh at every point: the four corners hashed each time.
+    fn value_noise(x: f32, y: f32, seed: u32, period: i64) -> f32 {
+        let (fx, fy) = (floor_of(x), floor_of(y));
+        let (tx, ty) = (x - fx, y - fy);
+        let (ux, uy) = (tx * tx * (3.0 - 2.0 * tx), ty * ty * (3.0 - 2.0 * ty));
+        let (ix, iy) = (fx as i64, fy as i64);
+        let wrap = |i: i64| if period > 0 { i.rem_euclid(period) } else { i };
+        let (x0, x1, y0, y1) = (wrap(ix), wrap(ix + 1), wrap(iy), wrap(iy + 1));
+        let (h00, h10) = (hash(x0, y0, seed), hash(x1, y0, seed));
+        let (h01, h11) = (hash(x0, y1, seed), hash(x1, y1, seed));
+        let top = h00 + (h10 - h00) * ux;
+        let bottom = h01 + (h11 - h01) * ux;
+        top + (bottom - top) * uy
+    }
+
+    /// The fractal sum of fresh reads.
+    fn fbm(x: f32, y: f32, seed: u32, octaves: u32, period: i64) -> f32 {
+        let (mut sum, mut amp, mut f, mut p) = (0.0, 0.5, 1.0, period);
+        for k in 0..octaves {
+            sum += amp * value_noise(x * f, y * f, seed.wrapping_add(k * 101), p);
+            amp *= 0.5;
+            f *= 2.0;
+            p *= 2;
+        }
+        sum
+    }
+
+    #[test]
+    fn a_row_s_lattices_read_what_fresh_reads_do_bit_for_bit() {
+        // Rows of texels at several spacings (coarser and finer than a cell), across negative
+        // and positive coordinates, with and without a period: the cached hashes of the last
+        // cell give the bits of reading every point afresh.
+        for (seed, period) in [(11u32, 0i64), (37, 0), (31, 64), (29, 10)] {
+            for step in [0.013f32, 0.2, 0.77, 3.1] {
+                for y in [-7.3f32, -0.5, 0.0, 2.25, 101.9] {
+                    let mut lattice = Lattice::new(seed, period);
+                    let mut octaves = Fbm::new(seed, 4, period);
+                    for i in 0..2000 {
+                        let x = -40.0 + i as f32 * step;
+                        assert_eq!(
+                            lattice.at(x, y).to_bits(),
+                            value_noise(x, y, seed, period).to_bits(),
+                            "value noise at ({x}, {y}), seed {seed}, period {period}"
+                        );
+                        assert_eq!(
+                            octaves.at(x, y).to_bits(),
+                            fbm(x, y, seed, 4, period).to_bits(),
+                            "fbm at ({x}, {y}), seed {seed}, period {period}"
+                        );
+                    }
+                }
+            }
         }
     }
 
