@@ -639,11 +639,21 @@ mod tests {
         // cell give the bits of reading every point afresh.
         for (seed, period) in [(11u32, 0i64), (37, 0), (31, 64), (29, 10)] {
             for step in [0.013f32, 0.2, 0.77, 3.1] {
-                for y in [-7.3f32, -0.5, 0.0, 2.25, 101.9] {
+                // Rows (a texture's use), a diagonal that changes the cell's row too, and walks
+                // that start in cell (0, 0).
+                for (x0, y, slope) in [
+                    (-40.0f32, -7.3f32, 0.0f32),
+                    (-40.0, -0.5, 0.0),
+                    (0.0, 0.0, 0.0),
+                    (0.0, 2.25, 0.0),
+                    (-40.0, 101.9, 0.0),
+                    (-40.0, -30.0, 0.37),
+                ] {
                     let mut lattice = Lattice::new(seed, period);
                     let mut octaves = Fbm::new(seed, 4, period);
                     for i in 0..2000 {
-                        let x = -40.0 + i as f32 * step;
+                        let x = x0 + i as f32 * step;
+                        let y = y + slope * i as f32 * step;
                         assert_eq!(
                             lattice.at(x, y).to_bits(),
                             value_noise(x, y, seed, period).to_bits(),
@@ -664,8 +674,8 @@ mod tests {
     fn tileable_noise_matches_across_the_period() {
         for k in 0..50 {
             let (x, y) = (0.37 * k as f32, 0.11 * k as f32);
-            let a = fbm(x, y, 5, 4, 8);
-            let b = fbm(x + 8.0, y - 16.0, 5, 4, 8);
+            let a = Fbm::new(5, 4, 8).at(x, y);
+            let b = Fbm::new(5, 4, 8).at(x + 8.0, y - 16.0);
             assert!((a - b).abs() < 1e-4, "{a} vs {b}");
         }
     }

@@ -140,6 +140,7 @@ impl PixelNoise {
         luminance: impl Fn([u8; 3]) -> u8,
     ) -> Vec<u8> {
         const RUN: usize = 1024;
+        const _: () = assert!(RUN % 4 == 0, "runs of whole four-pixel blocks");
         let mut grey = vec![0u8; src.len() / 4];
         let mut rgb = vec![0u8; RUN * 3];
         for (run, out) in src.chunks(RUN * 4).zip(grey.chunks_mut(RUN)) {
