@@ -43,12 +43,11 @@ fn rendered_runs_deliver_images_at_their_rates_and_repeat_bit_for_bit() {
             "run {k} printed errors"
         );
         digests.push(printed_digest(&o));
-        let metrics: serde_json::Value =
-            serde_json::from_slice(&std::fs::read(out.join("metrics.json")).unwrap()).unwrap();
-        let m = &metrics["messages"];
+        let metrics = hetsim_eval::Metrics::read(&out).unwrap();
+        let m = &metrics.messages;
         // 2 s: c't-Bot cameras at 2 Hz, the parent's panorama at 5 Hz.
-        assert_eq!(m["child1/camera"], 4, "{m}");
-        assert_eq!(m["parent/omni"], 10, "{m}");
+        assert_eq!(m.get("child1/camera"), Some(&4), "{m:?}");
+        assert_eq!(m.get("parent/omni"), Some(&10), "{m:?}");
         let manifest: serde_json::Value =
             serde_json::from_slice(&std::fs::read(out.join("manifest.json")).unwrap()).unwrap();
         assert!(
@@ -82,16 +81,18 @@ fn cameras_render_only_for_robots_that_want_images() {
         ],
         &[],
     ));
-    let metrics: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(out.join("metrics.json")).unwrap()).unwrap();
-    let m = &metrics["messages"];
-    assert!(m["child1/camera"].is_null(), "{m}");
-    let panoramas = m["parent/omni"].as_u64().unwrap_or(0);
+    let metrics = hetsim_eval::Metrics::read(&out).unwrap();
+    let m = &metrics.messages;
+    assert!(!m.contains_key("child1/camera"), "{m:?}");
+    let panoramas = m.get("parent/omni").copied().unwrap_or(0);
     assert!(
         (8..=10).contains(&panoramas),
-        "{panoramas} panoramas in 2 s at 5 Hz: {m}"
+        "{panoramas} panoramas in 2 s at 5 Hz: {m:?}"
     );
-    assert!(m["parent/tracker"].is_null(), "no emulated tracker: {m}");
+    assert!(
+        !m.contains_key("parent/tracker"),
+        "no emulated tracker: {m:?}"
+    );
 }
 
 #[test]

@@ -155,9 +155,8 @@ fn run_writes_manifest_truth_and_metrics_in_the_promised_formats() {
         manifest["resolved"]["scenario"]["world"]["indoor"]["width_m"],
         8.0
     );
-    let metrics: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(out.join("metrics.json")).unwrap()).unwrap();
-    assert_eq!(metrics["sim_secs"], 30.0);
+    let metrics = Metrics::read(&out).unwrap();
+    assert_eq!(metrics.sim_secs, 30.0);
     for robot in ["parent", "child1", "child2", "child3"] {
         let text = std::fs::read_to_string(out.join(format!("truth/{robot}.tum"))).unwrap();
         let lines: Vec<&str> = text.lines().collect();

@@ -14,6 +14,8 @@
 //! refactor pass.
 
 use hetsim_eval::localize::load_database;
+use hetsim_eval::team::{ParentLocalization, Tracking};
+use hetsim_eval::Metrics;
 use hetsim_msgs::CameraGeometry;
 use hetsim_render::{CameraView, RenderOptions, Renderer};
 use hetsim_scene::{load_scenario, LoadOptions};
@@ -129,29 +131,28 @@ fn verify(
     }
 }
 
-/// A run's metrics.json, after checking that the typed `Metrics` holds every field of it: read
-/// into the struct and back, the same document.
-fn metrics(dir: &Path) -> Value {
+/// A run's metrics, after checking that the typed `Metrics` holds every field of its
+/// metrics.json: read into the struct and back, the same document.
+fn metrics(dir: &Path) -> Metrics {
     let doc: Value =
         serde_json::from_slice(&std::fs::read(dir.join("metrics.json")).unwrap()).unwrap();
-    let typed = hetsim_eval::Metrics::read(dir).unwrap();
+    let typed = Metrics::read(dir).unwrap();
     assert_eq!(
         serde_json::to_value(&typed).unwrap(),
         doc,
         "metrics.json and the typed Metrics differ"
     );
-    doc
+    typed
 }
 
 /// The parent localizes from its laser: its error stays below 0.08 m (its 0.28 m body
 /// leaves 0.11 m on each side of a 0.5 m cell, 0.08 m when it was 0.34 m; beyond that it
 /// would graze the furniture), and its heading within 10 degrees (a corner 0.198 m out
 /// moves by under 0.04 m).
-fn assert_parent_localization(loc: &Value) {
-    let (max_m, max_deg) = (&loc["position_error_max_m"], &loc["heading_error_max_deg"]);
-    assert!(loc["estimates"].as_u64().unwrap() > 100, "{loc}");
-    assert!(max_m.as_f64().unwrap() < 0.08, "{loc}");
-    assert!(max_deg.as_f64().unwrap() < 10.0, "{loc}");
+fn assert_parent_localization(loc: &ParentLocalization) {
+    assert!(loc.estimates > 100, "{loc:?}");
+    assert!(loc.position_error_max_m < 0.08, "{loc:?}");
+    assert!(loc.heading_error_max_deg < 10.0, "{loc:?}");
 }
 
 /// The parent tracks its children by the hats in its panoramas: over more than `min_fixes`
@@ -159,23 +160,11 @@ fn assert_parent_localization(loc: &Value) {
 /// (0.04 +- 0.02 m within r_los: mean under 0.04 m, 95 % under 0.08 m, its mean plus two
 /// standard deviations), and no fix is given to the wrong child (every one under half the
 /// 0.5 m vertex spacing).
-fn assert_tracking(tracking: &Value, min_fixes: u64) {
-    assert!(
-        tracking["fixes"].as_u64().unwrap() > min_fixes,
-        "{tracking}"
-    );
-    assert!(
-        tracking["error_m"]["mean"].as_f64().unwrap() < 0.04,
-        "{tracking}"
-    );
-    assert!(
-        tracking["error_p95_m"].as_f64().unwrap() < 0.08,
-        "{tracking}"
-    );
-    assert!(
-        tracking["error_max_m"].as_f64().unwrap() < 0.25,
-        "{tracking}"
-    );
+fn assert_tracking(tracking: &Tracking, min_fixes: usize) {
+    assert!(tracking.fixes > min_fixes, "{tracking:?}");
+    assert!(tracking.error_m.mean < 0.04, "{tracking:?}");
+    assert!(tracking.error_p95_m < 0.08, "{tracking:?}");
+    assert!(tracking.error_max_m < 0.25, "{tracking:?}");
 }
 
 // The lab and indoor-team digests moved once, in the commit that made truth an oracle: the
@@ -447,50 +436,49 @@ fn golden_lab_mission() {
 /// What a lab run must have done, on any backend.
 fn lab_outputs(out: &Path) {
     let m = metrics(out);
-    let t = &m["team"];
-    assert_eq!(t["finished"], true, "{t}");
-    let target = t["vertices"].as_u64().unwrap() - t["parent_vertices"].as_u64().unwrap();
+    let t = m.team.as_ref().expect("metrics.json has a team section");
+    assert!(t.finished, "{t:?}");
+    let target = t.vertices - t.parent_vertices;
     // The lab's 84 vertices are all reachable: every one not a parent vertex is imaged.
-    assert_eq!(t["vertices"], 84);
-    assert_eq!(t["unplanned"].as_array().unwrap().len(), 0);
-    assert_eq!(t["imaged"].as_u64().unwrap(), target, "{t}");
-    assert_eq!(t["imaged_fraction"], 1.0);
-    assert_eq!(t["collisions"], 0, "{t}");
-    assert_eq!(t["images_with_robot_in_view"], 0, "{t}");
+    assert_eq!(t.vertices, 84);
+    assert_eq!(t.unplanned.len(), 0, "unplanned: {:?}", t.unplanned);
+    assert_eq!(t.imaged, target, "{t:?}");
+    assert_eq!(t.imaged_fraction, 1.0);
+    assert_eq!(t.collisions, 0, "{t:?}");
+    assert_eq!(t.images_with_robot_in_view, 0, "{t:?}");
     // The plan keeps robots out of the images at any distance, as the camera sees them.
-    assert_eq!(t["images_with_distant_robot_in_view"], 0, "{t}");
+    assert_eq!(t.images_with_distant_robot_in_view, 0, "{t:?}");
     // Grab poses: within a few centimetres and degrees of the vertex and the direction of
     // mapping (the seed measured 0.10 m and 8.8 deg with its real robots).
-    assert!(t["position_error_m"]["mean"].as_f64().unwrap() < 0.1, "{t}");
-    assert!(
-        t["heading_error_deg"]["mean"].as_f64().unwrap() < 8.0,
-        "{t}"
+    assert!(t.position_error_m.mean < 0.1, "{t:?}");
+    assert!(t.heading_error_deg.mean < 8.0, "{t:?}");
+    assert_parent_localization(
+        t.parent_localization
+            .as_ref()
+            .expect("the team has the parent's laser localization (parent_localization)"),
     );
-    assert_parent_localization(&t["parent_localization"]);
-    assert_tracking(&t["tracking"], 1000);
+    assert_tracking(&t.tracking, 1000);
     // Mission time in the range of the seed's 38.4 min (our children turn faster).
-    let minutes = t["mission_min"].as_f64().unwrap();
+    let minutes = t.mission_min;
     assert!((15.0..45.0).contains(&minutes), "{minutes} min");
     // The run ended with the mission and the child's localization run after it, not at the
     // scenario's hour: 20 moves of 0.5 m at 0.15 m/s, with turns and grabs, take minutes.
-    let localized = t["localized_min"]
-        .as_f64()
-        .expect("the localization run ended");
-    assert!(localized > minutes && localized < minutes + 10.0, "{t}");
-    assert!(m["sim_secs"].as_f64().unwrap() < localized * 60.0 + 3.0);
+    let localized = t.localized_min.expect("the localization run ended");
+    assert!(localized > minutes && localized < minutes + 10.0, "{t:?}");
+    assert!(m.sim_secs < localized * 60.0 + 3.0);
     // The database: one PNG per imaged vertex, and the plots.
     let images = std::fs::read_dir(out.join("coverage/images"))
         .unwrap()
         .count();
-    assert_eq!(images as u64, target);
+    assert_eq!(images, target);
     for plot in ["coverage-plan.png", "coverage-paths.png"] {
         assert!(out.join("plots").join(plot).is_file(), "{plot}");
     }
     // The child sent the database after mapping drove its 20 moves on its own (an image
     // before the first and after each), and localized with both features: the error ends
     // within one grid spacing d = 0.5 m and stays there.
-    let runs = t["localization"].as_array().unwrap();
-    assert_eq!(runs.len(), 2, "{t}");
+    let runs = &t.localization;
+    assert_eq!(runs.len(), 2, "{t:?}");
     // It drove by encoders the parent calibrated from its tracks, on enough hops. A
     // c't-Bot's wheels slip 2 % and each encoder's scale has a 2 % sigma (1.4 % for their
     // mean), so it travels 0.94-1.02 m per metre counted (3 sigma); the calibration runs
@@ -500,12 +488,18 @@ fn lab_outputs(out: &Path) {
     // within about 11 % x 1.25 / sqrt(10) = 4.3 %, plus the tracker's range bias (0.2 %
     // once the hats' sides are undone, 0.7 % if they were not).
     assert!(
-        t["localization_odometry_hops"].as_u64().unwrap() >= 10,
-        "{t}"
+        t.localization_odometry_hops
+            .expect("the odometry calibration's hops (localization_odometry_hops)")
+            >= 10,
+        "{t:?}"
     );
-    let scale = t["localization_odometry_scale"].as_f64().unwrap();
+    let scale = t
+        .localization_odometry_scale
+        .expect("the encoders' scale sent (localization_odometry_scale)");
     assert!((0.92..1.03).contains(&scale), "{scale}");
-    let truth = t["localization_odometry_scale_true"].as_f64().unwrap();
+    let truth = t
+        .localization_odometry_scale_true
+        .expect("the scale on the truth (localization_odometry_scale_true)");
     // And it must beat no calibration: at most half as far from the truth as 1 is.
     assert!(
         (scale - truth).abs() < (1.0 - truth).abs() / 2.0,
@@ -516,9 +510,9 @@ fn lab_outputs(out: &Path) {
         "sent {scale}, on the truth {truth}"
     );
     for run in runs {
-        assert_eq!(run["steps"], 21, "{run}");
-        assert!(run["converged_at"].is_u64(), "{run}");
-        assert!(run["final_error_m"].as_f64().unwrap() < 0.5, "{run}");
+        assert_eq!(run.steps, 21, "{run:?}");
+        assert!(run.converged_at.is_some(), "{run:?}");
+        assert!(run.final_error_m < 0.5, "{run:?}");
     }
 
     // An image of the database's place localizes to its own vertex: re-render each grab pose
@@ -585,23 +579,28 @@ fn golden_indoor_team_mission() {
             ),
         ],
         &|out| {
-            let t = &metrics(out)["team"];
-            assert_eq!(t["imaged_fraction"], 1.0, "{t}");
+            let m = metrics(out);
+            let t = m.team.as_ref().expect("metrics.json has a team section");
+            assert_eq!(t.imaged_fraction, 1.0, "{t:?}");
             // The paper's rule: no robot stands in a grabbing child's view, at any distance
             // the camera sees it (a robot's edge showing past a corner counts).
-            assert_eq!(t["images_with_robot_in_view"], 0, "{t}");
-            assert_eq!(t["images_with_distant_robot_in_view"], 0, "{t}");
-            assert_tracking(&t["tracking"], 10_000);
-            assert_parent_localization(&t["parent_localization"]);
+            assert_eq!(t.images_with_robot_in_view, 0, "{t:?}");
+            assert_eq!(t.images_with_distant_robot_in_view, 0, "{t:?}");
+            assert_tracking(&t.tracking, 10_000);
+            assert_parent_localization(
+                t.parent_localization
+                    .as_ref()
+                    .expect("the team has the parent's laser localization (parent_localization)"),
+            );
             // The first child that can move after the mapping (which one depends on where
             // the mapping left them: child1 in the run docs/cooperative-mapping.md describes) drives the
             // 20 moves and localizes within one grid spacing.
-            assert!(t["localized_min"].is_f64(), "{t}");
-            let runs = t["localization"].as_array().unwrap();
-            assert_eq!(runs.len(), 2, "{t}");
+            assert!(t.localized_min.is_some(), "{t:?}");
+            let runs = &t.localization;
+            assert_eq!(runs.len(), 2, "{t:?}");
             for run in runs {
-                assert_eq!(run["steps"], 21, "{run}");
-                assert!(run["final_error_m"].as_f64().unwrap() < 0.5, "{run}");
+                assert_eq!(run.steps, 21, "{run:?}");
+                assert!(run.final_error_m < 0.5, "{run:?}");
             }
         },
     );

@@ -3,6 +3,7 @@
 //! the first divergence; a EuRoC dump feeds the VO; and each kind of damaged input is refused
 //! with its file and where in it.
 
+use hetsim_eval::Metrics;
 use hetsim_tests::{hetsim, hetsim_release, printed_digest};
 use std::path::Path;
 
@@ -13,6 +14,11 @@ fn files(dir: &Path) -> Vec<(String, Vec<u8>)> {
 
 fn file(dir: &Path, name: &str) -> Vec<u8> {
     std::fs::read(dir.join(name)).unwrap_or_else(|e| panic!("{}/{name}: {e}", dir.display()))
+}
+
+/// A results folder's metrics.json, typed.
+fn metrics(dir: &Path) -> Metrics {
+    Metrics::read(dir).unwrap_or_else(|e| panic!("{e}"))
 }
 
 fn ok(args: &[&str]) -> String {
@@ -105,24 +111,22 @@ fn a_replayed_village_computes_the_live_runs_bytes_and_a_changed_parameter_chang
         }
     }
     assert!(file(&live, "map.ply") == file(&blind, "map.ply"));
-    let blind_m: serde_json::Value = serde_json::from_slice(&file(&blind, "metrics.json")).unwrap();
-    let live_m: serde_json::Value = serde_json::from_slice(&file(&live, "metrics.json")).unwrap();
-    assert!(
-        live_m["comms"]["sent"].as_u64().unwrap() > 0,
-        "{}",
-        live_m["comms"]
-    );
-    assert_eq!(
-        blind_m["comms"], live_m["comms"],
-        "the radio traffic changed"
-    );
-    assert_eq!(blind_m["slam"], live_m["slam"]);
+    let blind_m = metrics(&blind);
+    let live_m = metrics(&live);
+    assert!(live_m.comms.sent > 0, "{:?}", live_m.comms);
+    assert_eq!(blind_m.comms, live_m.comms, "the radio traffic changed");
+    assert_eq!(blind_m.slam, live_m.slam);
     // ... while the oracle did reach them in the live run, and not in this replay.
     for robot in ["dala", "ressac"] {
         let topic = format!("{robot}/truth");
-        assert!(live_m["messages"][&topic].as_u64().unwrap() > 0, "{topic}");
+        let live_truth = live_m
+            .messages
+            .get(&topic)
+            .copied()
+            .unwrap_or_else(|| panic!("no {topic} messages in the live run"));
+        assert!(live_truth > 0, "{topic}");
         assert!(
-            blind_m["messages"][&topic].is_null(),
+            !blind_m.messages.contains_key(&topic),
             "{topic} was withheld"
         );
     }
@@ -157,23 +161,26 @@ fn a_replayed_village_computes_the_live_runs_bytes_and_a_changed_parameter_chang
         &s(&lossy),
     ]);
     assert!(file(&live, "slam/ressac.tum") != file(&lossy, "slam/ressac.tum"));
-    let comms: serde_json::Value = serde_json::from_slice(&file(&lossy, "metrics.json")).unwrap();
-    let live_m: serde_json::Value = serde_json::from_slice(&file(&live, "metrics.json")).unwrap();
-    for field in ["ate_m", "rpe_1s_m", "length_m"] {
-        let (a, b) = (
-            live_m["estimates"]["vo/ressac"][field].as_f64().unwrap(),
-            comms["estimates"]["vo/ressac"][field].as_f64().unwrap(),
-        );
+    let lossy_m = metrics(&lossy);
+    let live_vo = live_m
+        .estimates
+        .get("vo/ressac")
+        .expect("a vo/ressac estimate in the live run");
+    let lossy_vo = lossy_m
+        .estimates
+        .get("vo/ressac")
+        .expect("a vo/ressac estimate in the lossy run");
+    for (field, a, b) in [
+        ("ate_m", live_vo.ate_m, lossy_vo.ate_m),
+        ("rpe_1s_m", live_vo.rpe_1s_m, lossy_vo.rpe_1s_m),
+        ("length_m", live_vo.length_m, lossy_vo.length_m),
+    ] {
         assert!(
             (a - b).abs() < 1e-9,
             "vo/ressac {field}: {a} live, {b} lossy"
         );
     }
-    assert!(
-        comms["comms"]["dropped_loss"].as_u64().unwrap() > 0,
-        "{}",
-        comms["comms"]
-    );
+    assert!(lossy_m.comms.dropped_loss > 0, "{:?}", lossy_m.comms);
     // A setting that is not a field is refused by the robot file's loader.
     let bad = tmp.path().join("bad");
     let e = refused(
@@ -351,9 +358,9 @@ fn a_replayed_coverage_mission_sends_every_recorded_command_or_stops_at_the_firs
             printed_digest(&shared.output),
         )
     };
-    let metrics: serde_json::Value = serde_json::from_slice(&file(&live, "metrics.json")).unwrap();
+    let m = metrics(&live);
     assert_eq!(
-        metrics["team"]["imaged_fraction"].as_f64(),
+        m.team.as_ref().map(|t| t.imaged_fraction),
         Some(1.0),
         "the mission images every vertex"
     );

@@ -1,5 +1,7 @@
 //! The local level of the hierarchical SLAM on rendered frames, against ground truth.
 
+use hetsim_eval::slam::EventMetrics;
+use hetsim_eval::Metrics;
 use hetsim_msgs::{mount_to_optical, CameraGeometry};
 use hetsim_msgs::{pose_from_xyz_rpy, Image, Pose, PoseStamped, RobotStack, SensorMsg};
 use hetsim_render::{CameraView, RenderOptions, Renderer};
@@ -229,8 +231,9 @@ fn local_slam_tracks_a_rendered_rover_sequence_no_worse_than_vo() {
     assert!(median < 0.2, "median relative depth error {median:.3}");
 }
 
-fn metrics(dir: &std::path::Path) -> serde_json::Value {
-    serde_json::from_slice(&std::fs::read(dir.join("metrics.json")).unwrap()).unwrap()
+/// A results folder's metrics.json, typed.
+fn metrics(dir: &std::path::Path) -> Metrics {
+    Metrics::read(dir).unwrap_or_else(|e| panic!("{e}"))
 }
 
 /// The short village in lockstep (Dala and Ressac rendered at 512 x 384): a rendezvous just
@@ -247,9 +250,10 @@ pub(crate) fn cooperative_slam_corrects_ressac_and_keeps_dala_within_one_percent
 ) {
     let m = metrics(out);
     let ate = |kind: &str, robot: &str| {
-        m["estimates"][format!("{kind}/{robot}")]["ate_m"]
-            .as_f64()
-            .unwrap()
+        m.estimates
+            .get(&format!("{kind}/{robot}"))
+            .unwrap_or_else(|| panic!("no {kind}/{robot} estimate"))
+            .ate_m
     };
     // Ressac is corrected by its image match: the match pulls its error down when it fires
     // (asserted with the events below). Whether the cooperative estimate beats the open
@@ -264,65 +268,69 @@ pub(crate) fn cooperative_slam_corrects_ressac_and_keeps_dala_within_one_percent
     // the drift's recalibration, 1794a37: 0.06 m, open loop 0.06 m).
     let (coop, open) = (ate("slam", "dala"), ate("slam-open", "dala"));
     open_loop_and_vo_start_where_the_first_link_put_them(out);
-    let length = m["estimates"]["slam/dala"]["length_m"].as_f64().unwrap();
+    let length = m
+        .estimates
+        .get("slam/dala")
+        .expect("a slam/dala estimate")
+        .length_m;
     assert!(
         coop < 0.01 * length,
         "dala: cooperative ATE {coop:.3} m (open loop {open:.3} m) over {length:.1} m"
     );
-    let slam = &m["slam"];
-    let events = |robot: &str, kind: &str| -> Vec<serde_json::Value> {
-        slam["robots"][robot]["events"]
-            .as_array()
-            .unwrap()
+    let slam = m.slam.as_ref().expect("metrics.json has a slam section");
+    let robot_slam = |robot: &str| {
+        slam.robots
+            .get(robot)
+            .unwrap_or_else(|| panic!("no SLAM figures of {robot}"))
+    };
+    let events = |robot: &str, kind: &str| -> Vec<EventMetrics> {
+        robot_slam(robot)
+            .events
             .iter()
-            .filter(|e| e["kind"] == kind)
+            .filter(|e| e.kind == kind)
             .cloned()
             .collect()
     };
     // The rendezvous: both robots at the same frame, each linked to the other's origin.
     let (rd, rr) = (events("dala", "rendezvous"), events("ressac", "rendezvous"));
-    assert_eq!((rd.len(), rr.len()), (1, 1), "{slam}");
-    assert_eq!(rd[0]["time_s"], rr[0]["time_s"]);
-    assert!(
-        rd[0]["time_s"].as_f64().unwrap() < 2.0,
-        "just after the start"
-    );
+    assert_eq!((rd.len(), rr.len()), (1, 1), "{slam:?}");
+    assert_eq!(rd[0].time_s, rr[0].time_s);
+    assert!(rd[0].time_s < 2.0, "just after the start");
     // The image match is Ressac's, earned from its images (no image-match sensor in the
     // robot files any more), and a true one: within 2 m and 5 degrees of the true relative
     // pose (a wrong association lands metres or tens of degrees off), and within its own
     // covariance (chi-square with 6 degrees of freedom, 99.9 %: 22.46).
     assert!(
-        !m["messages"]
-            .as_object()
-            .unwrap()
-            .keys()
-            .any(|k| k.contains("image_match")),
-        "an image-match oracle fed the run: {}",
-        m["messages"]
+        !m.messages.keys().any(|k| k.contains("image_match")),
+        "an image-match oracle fed the run: {:?}",
+        m.messages
     );
     let matches = events("ressac", "image_match");
-    assert!(!matches.is_empty(), "no image match: {slam}");
-    let (before, after) = (
-        matches[0]["error_before_m"].as_f64().unwrap(),
-        matches[0]["error_after_m"].as_f64().unwrap(),
-    );
+    assert!(!matches.is_empty(), "no image match: {slam:?}");
+    let (before, after) = (matches[0].error_before_m, matches[0].error_after_m);
     assert!(
         after < before,
         "the match moved Ressac {before:.3} -> {after:.3} m"
     );
-    let judged = &slam["robots"]["ressac"]["matching"];
-    assert_eq!(judged["false_matches"], 0, "{judged}");
-    for link in judged["links"].as_array().unwrap() {
-        assert!(link["nees"].as_f64().unwrap() < 22.46, "{link}");
+    let judged = robot_slam("ressac")
+        .matching
+        .as_ref()
+        .expect("ressac's image matching judged against the truth (matching)");
+    assert_eq!(judged.false_matches, 0, "{judged:?}");
+    for link in &judged.links {
+        assert!(link.nees < 22.46, "{link:?}");
     }
     for robot in ["dala", "ressac"] {
-        let c = &slam["robots"][robot]["counters"];
-        assert!(
-            c["keyframe_bytes_sent"].as_u64().unwrap() > 0,
-            "{robot}: {c}"
-        );
-        assert_eq!(c["unresolved_links"], 0, "{robot}: {c}");
-        assert!(c["shares_received"].as_u64().unwrap() >= 2, "{robot}: {c}");
+        let r = robot_slam(robot);
+        let c = &r.counters;
+        let counter = |name: &str| {
+            c.get(name)
+                .copied()
+                .unwrap_or_else(|| panic!("{robot}: no counter {name}: {c:?}"))
+        };
+        assert!(counter("keyframe_bytes_sent") > 0, "{robot}: {c:?}");
+        assert_eq!(c.get("unresolved_links"), Some(&0), "{robot}: {c:?}");
+        assert!(counter("shares_received") >= 2, "{robot}: {c:?}");
         // Consistency on one run: a consistent filter's pose NEES is chi-square with 6
         // degrees of freedom, within [0.381, 22.46] (its 0.1 % and 99.9 % quantiles) but
         // for one sample in 500; the run's mean falls outside as rarely when its poses are
@@ -332,7 +340,7 @@ pub(crate) fn cooperative_slam_corrects_ressac_and_keeps_dala_within_one_percent
         // that resolution Dala's forward error is 11 times its variance; with Ressac's VO
         // covariance scaled by 4 in its sub-map EKF, 16.4 and 11.1.) The Monte Carlo
         // test over the full village is in `results/village/README.md`.
-        let nees = slam["robots"][robot]["nees_mean"].as_f64().unwrap();
+        let nees = r.nees_mean;
         assert!(
             (0.381..=22.46).contains(&nees),
             "{robot}: mean NEES {nees:.2} outside [0.381, 22.46]"
@@ -340,10 +348,7 @@ pub(crate) fn cooperative_slam_corrects_ressac_and_keeps_dala_within_one_percent
         // Both robots map lines (measured when set: Dala 2358 line observations used,
         // Ressac 802; after the recalibration 2980 and 356; with Ressac's VO scale, 2980 and
         // 367).
-        assert!(
-            c["line_observations_used"].as_u64().unwrap() >= 100,
-            "{robot}: {c}"
-        );
+        assert!(counter("line_observations_used") >= 100, "{robot}: {c:?}");
     }
     // map.ply: points, then the segments' endpoints joined by edges, all finite.
     let ply = std::fs::read_to_string(out.join("map.ply")).unwrap();
@@ -376,16 +381,13 @@ pub(crate) fn cooperative_slam_corrects_ressac_and_keeps_dala_within_one_percent
     // 512 x 384 match's own error (about 1 m and 2 deg), so the match may leave it as it is.
     // The full village's 600 s carry that figure (`results/village/`).
     let im = events("ressac", "image_match");
-    assert_eq!(im.len(), 1, "image matches: {slam}");
+    assert_eq!(im.len(), 1, "image matches: {slam:?}");
     // The graph with covariances, and the Fig. 7 plots.
     let graph: serde_json::Value =
         serde_json::from_slice(&std::fs::read(out.join("slam/ressac-graph.json")).unwrap())
             .unwrap();
     let origins = graph["origins"].as_array().unwrap();
-    assert_eq!(
-        origins.len() as u64,
-        slam["robots"]["ressac"]["submaps"].as_u64().unwrap()
-    );
+    assert_eq!(origins.len(), robot_slam("ressac").submaps);
     assert_eq!(origins[1]["covariance"].as_array().unwrap().len(), 6);
     assert!(out.join("plots/fig7-ressac.png").exists());
 }
@@ -464,16 +466,27 @@ fn slam_with_events_is_deterministic_and_open_loop_has_none() {
         read(&one.0, "slam/ressac.tum"),
         read(&two.0, "slam/ressac.tum")
     );
-    assert!(!metrics(&one.0)["slam"]["robots"]["ressac"]["events"]
-        .as_array()
-        .unwrap()
+    let one_m = metrics(&one.0);
+    let one_slam = one_m
+        .slam
+        .as_ref()
+        .expect("metrics.json has a slam section");
+    assert!(!one_slam
+        .robots
+        .get("ressac")
+        .expect("SLAM figures of ressac")
+        .events
         .is_empty());
     let open = run("open", "2", &["--open-loop"]).join().unwrap();
     let m = metrics(&open.0);
+    let slam = m.slam.as_ref().expect("metrics.json has a slam section");
     for robot in ["dala", "ressac"] {
-        let r = &m["slam"]["robots"][robot];
-        assert!(r["events"].as_array().unwrap().is_empty(), "{r}");
-        assert!(r["counters"].get("shares_sent").is_none(), "{r}");
+        let r = slam
+            .robots
+            .get(robot)
+            .unwrap_or_else(|| panic!("no SLAM figures of {robot}"));
+        assert!(r.events.is_empty(), "{r:?}");
+        assert!(!r.counters.contains_key("shares_sent"), "{r:?}");
         assert_eq!(
             read(&open.0, &format!("slam/{robot}.tum")),
             read(&open.0, &format!("slam-open/{robot}.tum"))

@@ -2,12 +2,13 @@
 //! vertices and a lossy radio. The lab mission's own checks run with its golden digest
 //! (`tests/golden.rs`), on both backends.
 
+use hetsim_eval::Metrics;
 use hetsim_tests::{hetsim, printed_digest, repo};
-use serde_json::Value;
 use std::path::Path;
 
-fn metrics(dir: &Path) -> Value {
-    serde_json::from_slice(&std::fs::read(dir.join("metrics.json")).unwrap()).unwrap()
+/// A results folder's metrics.json, typed.
+fn metrics(dir: &Path) -> Metrics {
+    Metrics::read(dir).unwrap_or_else(|e| panic!("{e}"))
 }
 
 /// A small room (3 x 2 m, d = 0.5 m) whose south-east corner cell is walled off by two
@@ -82,21 +83,15 @@ fn an_unreachable_vertex_is_reported_not_looped_on() {
     );
     printed_digest(&o);
     let m = metrics(&out);
-    assert_eq!(m["unreachable_vertices"], serde_json::json!([[5, 0]]));
-    let t = &m["team"];
-    assert_eq!(t["finished"], true, "{t}");
-    let unplanned = t["unplanned"].as_array().unwrap();
-    assert!(unplanned.contains(&serde_json::json!([5, 0])), "{t}");
+    assert_eq!(m.unreachable_vertices, Some(vec![(5, 0)]));
+    let t = m.team.as_ref().expect("metrics.json has a team section");
+    assert!(t.finished, "{t:?}");
+    let unplanned = &t.unplanned;
+    assert!(unplanned.contains(&(5, 0)), "{t:?}");
     // Everything else is imaged, and the mission ended long before the scenario's hour.
-    let target = t["vertices"].as_u64().unwrap()
-        - t["parent_vertices"].as_u64().unwrap()
-        - unplanned.len() as u64;
-    assert_eq!(t["imaged"].as_u64().unwrap(), target, "{t}");
-    assert!(
-        m["sim_secs"].as_f64().unwrap() < 1200.0,
-        "{}",
-        m["sim_secs"]
-    );
+    let target = t.vertices - t.parent_vertices - unplanned.len();
+    assert_eq!(t.imaged, target, "{t:?}");
+    assert!(m.sim_secs < 1200.0, "{}", m.sim_secs);
 }
 
 #[test]
@@ -114,32 +109,21 @@ fn the_mission_completes_with_ten_percent_comms_loss() {
         &[],
     ));
     let m = metrics(&out);
-    let t = &m["team"];
-    assert_eq!(t["finished"], true, "{t}");
-    assert!(
-        m["comms"]["dropped_loss"].as_u64().unwrap() > 0,
-        "{}",
-        m["comms"]
-    );
-    assert!(t["resent_orders"].as_u64().unwrap() > 0, "{t}");
-    let target = t["vertices"].as_u64().unwrap()
-        - t["parent_vertices"].as_u64().unwrap()
-        - t["unplanned"].as_array().unwrap().len() as u64;
-    assert_eq!(t["imaged"].as_u64().unwrap(), target, "{t}");
+    let t = m.team.as_ref().expect("metrics.json has a team section");
+    assert!(t.finished, "{t:?}");
+    assert!(m.comms.dropped_loss > 0, "{:?}", m.comms);
+    assert!(t.resent_orders > 0, "{t:?}");
+    let target = t.vertices - t.parent_vertices - t.unplanned.len();
+    assert_eq!(t.imaged, target, "{t:?}");
     // Nobody touched anything, the child's localization run after mapping included.
-    assert_eq!(t["collisions"], 0, "{t}");
+    assert_eq!(t.collisions, 0, "{t:?}");
     // The database reached the first child by the lossy radio, it drove its 20 moves and
     // its report came back: the mission ended with it, long before the scenario's hour.
-    let localized = t["localized_min"]
-        .as_f64()
-        .expect("the localization run ended");
-    assert!(
-        m["sim_secs"].as_f64().unwrap() < localized * 60.0 + 3.0,
-        "{m}"
-    );
-    let runs = t["localization"].as_array().unwrap();
-    assert_eq!(runs.len(), 2, "{t}");
+    let localized = t.localized_min.expect("the localization run ended");
+    assert!(m.sim_secs < localized * 60.0 + 3.0, "{m:?}");
+    let runs = &t.localization;
+    assert_eq!(runs.len(), 2, "{t:?}");
     for run in runs {
-        assert_eq!(run["steps"], 21, "{run}");
+        assert_eq!(run.steps, 21, "{run:?}");
     }
 }

@@ -3,6 +3,7 @@
 //! result earned by the robot software (issue 17). The five-seed figures are in
 //! `results/village/`.
 
+use hetsim_eval::Metrics;
 use hetsim_tests::{hetsim_release_bin, printed_digest, repo};
 use serde_json::Value;
 use std::process::Command;
@@ -49,14 +50,15 @@ fn the_full_village_earns_fig_7_with_consistent_covariances() {
     } else {
         eprintln!("village: no recorded digest for {backend} / {driver}; {digest} not compared");
     }
-    let m: Value =
-        serde_json::from_slice(&std::fs::read(out.join("metrics.json")).unwrap()).unwrap();
-    assert_eq!(m["sim_secs"].as_f64().unwrap().round(), 600.0);
+    let m = Metrics::read(&out).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(m.sim_secs.round(), 600.0);
     let ate = |kind: &str, robot: &str| {
-        m["estimates"][format!("{kind}/{robot}")]["ate_m"]
-            .as_f64()
-            .unwrap_or_else(|| panic!("{kind}/{robot}: {}", m["estimates"]))
+        m.estimates
+            .get(&format!("{kind}/{robot}"))
+            .unwrap_or_else(|| panic!("{kind}/{robot}: {:?}", m.estimates))
+            .ate_m
     };
+    let slam = m.slam.as_ref().expect("metrics.json has a slam section");
     for robot in ["dala", "ressac"] {
         // Fig. 7: the cooperative estimate (rendezvous, image matching, the radio) below the
         // robot's own sub-map chain and its VO, after SE(3) alignment.
@@ -71,7 +73,11 @@ fn the_full_village_earns_fig_7_with_consistent_covariances() {
         // over the run (correlated draws, mean 6) is less spread than one draw, so one
         // draw's 95 % interval is the loosest bound a consistent filter meets. (Before
         // issue 17 the first 60 s alone averaged 93 for Dala.)
-        let nees = m["slam"]["robots"][robot]["nees_mean"].as_f64().unwrap();
+        let nees = slam
+            .robots
+            .get(robot)
+            .unwrap_or_else(|| panic!("no SLAM figures of {robot}"))
+            .nees_mean;
         assert!(
             (CHI2_6_95.0..CHI2_6_95.1).contains(&nees),
             "{robot}: NEES {nees} outside {CHI2_6_95:?}"
@@ -79,10 +85,13 @@ fn the_full_village_earns_fig_7_with_consistent_covariances() {
     }
     // Ressac's loop closes from images: accepted matches, none false (judged against the
     // truth by the evaluation: more than 2 m or 5 degrees off).
-    let matching = &m["slam"]["robots"]["ressac"]["matching"];
-    assert!(
-        !matching["links"].as_array().unwrap().is_empty(),
-        "{matching}"
-    );
-    assert_eq!(matching["false_matches"], 0, "{matching}");
+    let matching = slam
+        .robots
+        .get("ressac")
+        .expect("SLAM figures of ressac")
+        .matching
+        .as_ref()
+        .expect("ressac's image matching judged against the truth (matching)");
+    assert!(!matching.links.is_empty(), "{matching:?}");
+    assert_eq!(matching.false_matches, 0, "{matching:?}");
 }
