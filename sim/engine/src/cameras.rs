@@ -408,45 +408,36 @@ impl Rig {
                 (&resampled, 3, depth)
             }
         };
-        let rgb = match (&self.noise, self.encoding) {
+        let data = match (&self.noise, self.encoding) {
             // Grey straight from the noise pass, with no RGB image in between.
-            (Some(noise), PixelEncoding::Mono8) => {
-                let grey = noise.apply_grey(
-                    src,
-                    stride,
-                    self.gain,
-                    &mut self.rng,
-                    PixelEncoding::luminance,
-                );
-                return self.finish(grey, depth, world_from_mount, stamp_ns, dt_ns);
+            (Some(noise), PixelEncoding::Mono8) => noise.apply_grey(
+                src,
+                stride,
+                self.gain,
+                &mut self.rng,
+                PixelEncoding::luminance,
+            ),
+            (Some(noise), PixelEncoding::Rgb8) => {
+                noise.apply(src, stride, self.gain, &mut self.rng)
             }
-            (Some(noise), _) => noise.apply(src, stride, self.gain, &mut self.rng),
-            // Unit gain, no noise: the RGB as it is.
-            (None, _) if stride == 3 && self.gain == 1.0 => src.clone(),
-            (None, _) => src
-                .chunks_exact(stride)
-                .flat_map(|px| px[..3].iter().map(|&c| quantize(c as f32 * self.gain)))
-                .collect(),
+            (None, encoding) => {
+                let rgb = if stride == 3 && self.gain == 1.0 {
+                    // Unit gain, no noise: the RGB as it is.
+                    src.clone()
+                } else {
+                    src.chunks_exact(stride)
+                        .flat_map(|px| px[..3].iter().map(|&c| quantize(c as f32 * self.gain)))
+                        .collect()
+                };
+                match encoding {
+                    PixelEncoding::Rgb8 => rgb,
+                    PixelEncoding::Mono8 => rgb
+                        .chunks_exact(3)
+                        .map(|p| PixelEncoding::luminance([p[0], p[1], p[2]]))
+                        .collect(),
+                }
+            }
         };
-        let data = match self.encoding {
-            PixelEncoding::Rgb8 => rgb,
-            PixelEncoding::Mono8 => rgb
-                .chunks_exact(3)
-                .map(|p| PixelEncoding::luminance([p[0], p[1], p[2]]))
-                .collect(),
-        };
-        self.finish(data, depth, world_from_mount, stamp_ns, dt_ns)
-    }
-
-    /// The shot of the image's bytes `data`, in the camera's encoding.
-    fn finish(
-        &self,
-        data: Vec<u8>,
-        depth: Option<Vec<f32>>,
-        world_from_mount: Pose,
-        stamp_ns: u64,
-        dt_ns: u64,
-    ) -> Shot {
         let body_from_optical = Isometry3::from_parts(
             self.body_from_mount.translation,
             self.body_from_mount.rotation * mount_to_optical(),

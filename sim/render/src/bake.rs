@@ -80,7 +80,6 @@ fn floor_of(x: f32) -> f32 {
 /// texels reads each cell of a coarse lattice many times (the terrain's 40 m octave some 200
 /// times at 20 cm a texel), and the four hashes are most of a read's cost. The same
 /// arithmetic as a fresh read, so the same bits (a test compares the two).
-#[derive(Clone)]
 pub(crate) struct Lattice {
     seed: u32,
     period: i64,
@@ -136,7 +135,6 @@ impl Lattice {
 
 /// Fractal sum of `octaves` value-noise octaves, amplitudes 1/2, 1/4, ...; frequencies double
 /// (and so does the period), so a tileable base stays tileable: a [`Lattice`] per octave.
-#[derive(Clone)]
 pub(crate) struct Fbm(Vec<Lattice>);
 
 impl Fbm {
