@@ -11,6 +11,14 @@ cd "$(dirname "$0")/.."
 source .ci/steps.sh
 # The Vulkan loader warns without it; nothing of ours reads it.
 export XDG_RUNTIME_DIR="${XDG_RUNTIME_DIR:-/tmp}"
+# Mesa's CPU rasterizers (lavapipe, llvmpipe) rasterize each draw on threads of their own,
+# one per core, woken and joined at a barrier per draw. The suite keeps both cores busy with
+# its own test threads, so those threads only add waking, waiting and switching: with none
+# (rasterizing on the rendering thread), 400 s of indoor-team cost 31.3 CPU-s instead of
+# 36.4 and 30 s of the village 60.7 instead of 70.3, with the same digests
+# (results/README.md, "CI's own time").
+# A run alone is faster with them (the README's main command keeps Mesa's default).
+export LP_NUM_THREADS="${LP_NUM_THREADS:-0}"
 
 step "tests build" cargo test --release --workspace --no-run
 step "cargo test --workspace (HETSIM_BACKEND=vulkan)" \
