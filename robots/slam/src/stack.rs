@@ -64,6 +64,8 @@ use hetsim_vision::stereo::Bench;
 use hetsim_vision::vo::StereoVo;
 use hetsim_vision::Gray;
 use nalgebra::{Matrix6, Vector2, Vector3};
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
 use std::collections::BTreeMap;
 
 mod landmarks;
@@ -128,7 +130,8 @@ pub struct SlamCore {
     seen_segments: Vec<Segment>,
     /// `(stamp, sub-map, pose in the sub-map, its covariance)` of every frame.
     trajectory: Vec<(u64, usize, Pose, Matrix6<f64>)>,
-    rng: Lcg,
+    /// RANSAC's generator for the VO, seeded by the caller.
+    rng: ChaCha8Rng,
     /// Key frames: this robot's (one per origin) and those received.
     places: Vec<places::Place>,
     /// How many of this robot's key frames each robot met has been sent.
@@ -137,40 +140,15 @@ pub struct SlamCore {
     last_match_attempt_ns: Option<u64>,
     /// The graph's joint covariance and the graph version it is of.
     covariance: Option<(u64, crate::graph::Covariance)>,
-    /// RANSAC's generator for image matching (VO's stays as it was).
-    match_rng: Lcg,
+    /// RANSAC's generator for image matching, a stream of its own so that trying a match
+    /// does not move the VO's draws.
+    match_rng: ChaCha8Rng,
     /// Observations used, and rejected by the gate.
     pub updates: (u64, u64),
     /// The robot whose first origin this robot's estimates moved into at the last change of
     /// frame, and this robot's first origin in it as the graph had it right then (see
     /// [`SlamReport::own_origin_at_link`]).
     origin_at_link: Option<(String, Pose)>,
-}
-
-/// A small deterministic generator for RANSAC, seeded by the caller.
-struct Lcg(u64);
-
-impl rand::TryRng for Lcg {
-    type Error = core::convert::Infallible;
-    fn try_next_u32(&mut self) -> Result<u32, Self::Error> {
-        Ok((self.try_next_u64()? >> 32) as u32)
-    }
-    fn try_next_u64(&mut self) -> Result<u64, Self::Error> {
-        self.0 = self
-            .0
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        let mut x = self.0;
-        x ^= x >> 33;
-        Ok(x)
-    }
-    fn try_fill_bytes(&mut self, dst: &mut [u8]) -> Result<(), Self::Error> {
-        for chunk in dst.chunks_mut(8) {
-            let v = self.try_next_u64()?.to_le_bytes();
-            chunk.copy_from_slice(&v[..chunk.len()]);
-        }
-        Ok(())
-    }
 }
 
 /// A point of a sub-map in the world frame, given the sub-map's origin.
@@ -228,12 +206,12 @@ impl SlamCore {
             vo_pose: None,
             vo_trajectory: Vec::new(),
             trajectory: Vec::new(),
-            rng: Lcg(seed),
+            rng: ChaCha8Rng::seed_from_u64(seed),
             places: Vec::new(),
             places_sent: BTreeMap::new(),
             last_match_attempt_ns: None,
             covariance: None,
-            match_rng: Lcg(seed ^ 0x5bd1_e995_9e37_79b9),
+            match_rng: ChaCha8Rng::seed_from_u64(seed ^ 0x5bd1_e995_9e37_79b9),
             updates: (0, 0),
             origin_at_link: None,
         }

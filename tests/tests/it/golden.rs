@@ -386,6 +386,12 @@ fn assert_tracking(tracking: &Tracking, min_fixes: usize) {
 // still have 0 collisions, 0 tracking losses and 0 images with a robot in view. Expecting a
 // driving child in view only where it may have got to (`expected_in_view`, the same day)
 // moved neither. Before: lab 501d77a6 / 12c6f4ca, indoor-team 0991abca / a6ffd1a7.
+//
+// The village-short digests moved when the SLAM's RANSAC generators became rand_chacha's
+// ChaCha8 (seeded as before: the robot's seed for the VO, the same xor for image matching)
+// instead of a hand-written LCG (issue 57): every VO motion, and so the SLAM, its events and
+// figures, drew other samples. The lab, indoor and no-render runs have no SLAM and did not
+// move. Before: village-short 21eaa76f / 839105d1.
 
 /// The lab mission of seed 002 in lockstep, beside its digest: the parent teleoperates the
 /// children, the children image every vertex, and the images localize (this was
@@ -635,12 +641,12 @@ fn golden_rendered_village_short() {
             (
                 LAVAPIPE.0,
                 LAVAPIPE.1,
-                "21eaa76f7d7ff85aad19bbe1ab91d29865eecf618a31309091d16806be2cb049",
+                "d24c9859ee7bdd6f0f83af16ee6e0adb188ba5156199e5cc8f2102aa803093dd",
             ),
             (
                 LLVMPIPE_GL.0,
                 LLVMPIPE_GL.1,
-                "839105d1fbba9f9da6a070cd3b56992595449dfca0e6addfa085366995d3950d",
+                "6cb4b23b9b39f313ebbd730176bc61087f7c018c499271a14cc1af12b1d122d8",
             ),
         ],
         &|out| {
