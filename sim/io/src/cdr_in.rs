@@ -3,12 +3,10 @@
 //! laser scan's angles, which `sensor_msgs/LaserScan` holds as `float32`: replay takes them
 //! from the robot file, see `replay.rs`).
 
-use crate::record::ros2::{Compass, GpsLocal, Header, Imu, Pose, PoseStamped, Time, WheelOdometry};
+use crate::record::ros2::{self, Header, PoseStamped, Time};
 use hetsim_engine::replay::Event;
-use hetsim_msgs::{
-    ChildTracks, Command, CompassReading, Delivered, GpsFix, Image, ImageMatch, ImuSample,
-    LaserScan, PixelEncoding, Rendezvous, SensorMsg, Track,
-};
+use hetsim_msgs::{Command, Delivered, GpsFix, SensorMsg};
+use hetsim_sensors::ros2::{from_cdr, DecodeError, Ros2Message, KINDS};
 use serde::Deserialize;
 
 /// What a channel carries, from its topic and schema.
@@ -25,23 +23,13 @@ enum Kind {
     Truth(String),
     /// `/<robot>/cmd`.
     Command(String),
-    /// A message for a robot: robot, sensor name, schema.
-    Sensor(String, String, &'static str),
+    /// A sensor's message for a robot: robot, sensor name, the kind's decoder.
+    Sensor(String, String, Decoder),
+    /// A radio delivery to a robot: robot, topic's sensor part.
+    Radio(String, String),
 }
 
-/// The schemas a robot's topics may have, as the recorder writes them.
-const SENSOR_SCHEMAS: [&str; 10] = [
-    "sensor_msgs/msg/Image",
-    "sensor_msgs/msg/LaserScan",
-    "sensor_msgs/msg/Imu",
-    "hetsim_msgs/msg/GpsLocal",
-    "hetsim_msgs/msg/Compass",
-    "hetsim_msgs/msg/WheelOdometry",
-    "hetsim_msgs/msg/ChildTracks",
-    "hetsim_msgs/msg/Rendezvous",
-    "hetsim_msgs/msg/ImageMatch",
-    "hetsim_msgs/msg/Comms",
-];
+type Decoder = fn(&[u8], String) -> Result<SensorMsg, DecodeError>;
 
 /// Why a recorded channel or message cannot be replayed.
 #[derive(Debug, thiserror::Error)]
@@ -68,43 +56,9 @@ pub enum CdrError {
     /// A command of an unknown kind.
     #[error("command kind \"{0}\": one of wheels, helicopter, stop")]
     CommandKind(String),
-    /// A message without CDR's encapsulation header.
-    #[error(
-        "not CDR: its encapsulation header is {0:02x?}, expected 00 01 (little-endian) or 00 00"
-    )]
-    NotCdr(Vec<u8>),
-    /// A message that decodes from fewer bytes than it has.
-    #[error("CDR decodes from {used} of its {len} bytes (a message of another layout?)")]
-    Trailing {
-        /// Bytes decoded.
-        used: usize,
-        /// Bytes in the message.
-        len: usize,
-    },
-    /// A message CDR cannot decode.
-    #[error("CDR does not decode: {0}")]
-    Decode(String),
-    /// A stamp before 0 or with nanoseconds of a second or more.
-    #[error("stamp {sec} s {nanosec} ns: a time from 0 on with nanoseconds below 1e9")]
-    Stamp {
-        /// Seconds.
-        sec: i32,
-        /// Nanoseconds.
-        nanosec: u32,
-    },
-    /// An image encoding hetsim does not read.
-    #[error("image encoding \"{0}\": hetsim reads rgb8 and mono8")]
-    ImageEncoding(String),
-    /// Padded image rows.
-    #[error("image step {step} for width {width} in {encoding}: hetsim reads unpadded rows")]
-    ImageStep {
-        /// Bytes per row.
-        step: u32,
-        /// Pixels per row.
-        width: u32,
-        /// Its encoding.
-        encoding: String,
-    },
+    /// A message that does not decode ([`hetsim_sensors::ros2`]).
+    #[error(transparent)]
+    Message(#[from] DecodeError),
     /// A radio delivery on another robot's topic.
     #[error("a radio delivery to \"{to}\" on {robot}'s topic")]
     Delivery {
@@ -153,20 +107,22 @@ impl Channel {
         match (sensor.as_str(), schema) {
             ("truth", "geometry_msgs/msg/PoseStamped") => channel(Kind::Truth(robot)),
             ("cmd", "hetsim_msgs/msg/Command") => channel(Kind::Command(robot)),
-            _ => match SENSOR_SCHEMAS.iter().find(|s| **s == schema) {
-                Some(s) => {
+            _ if schema == ros2::COMMS => channel(Kind::Radio(robot, sensor)),
+            _ => match KINDS.iter().find(|k| k.schema == schema) {
+                Some(k) => {
                     // A GPS fix's local copy is on `<gps>/local`; the robot knows it as `<gps>`.
                     let sensor = match sensor.strip_suffix("/local") {
-                        Some(gps) if *s == "hetsim_msgs/msg/GpsLocal" => gps.to_string(),
+                        Some(gps) if k.schema == GpsFix::SCHEMA => gps.to_string(),
                         _ => sensor,
                     };
-                    channel(Kind::Sensor(robot, sensor, s))
+                    channel(Kind::Sensor(robot, sensor, k.decode))
                 }
                 None => Err(CdrError::Schema {
                     schema: schema.to_string(),
                     known: format!(
-                        " (known: geometry_msgs/msg/PoseStamped on /<robot>/truth, hetsim_msgs/msg/Command on /<robot>/cmd, {})",
-                        SENSOR_SCHEMAS.join(", ")
+                        " (known: geometry_msgs/msg/PoseStamped on /<robot>/truth, hetsim_msgs/msg/Command on /<robot>/cmd, {}, {})",
+                        KINDS.map(|k| k.schema).join(", "),
+                        ros2::COMMS
                     ),
                 }),
             },
@@ -182,7 +138,7 @@ impl Channel {
                 Event::Truth {
                     robot: robot.clone(),
                     stamp_ns: ns(&m.header.stamp)?,
-                    pose: pose(&m.pose),
+                    pose: m.pose.pose(),
                 }
             }
             Kind::Command(robot) => {
@@ -207,218 +163,45 @@ impl Channel {
                     cmd,
                 }
             }
-            Kind::Sensor(robot, sensor, schema) => Event::Sensor {
+            Kind::Sensor(robot, sensor, decode) => Event::Sensor {
                 robot: robot.clone(),
                 topic: format!("{robot}/{sensor}"),
-                msg: sensor_msg(robot, sensor, schema, data)?,
+                msg: decode(data, sensor.clone())?,
+            },
+            Kind::Radio(robot, sensor) => Event::Sensor {
+                robot: robot.clone(),
+                topic: format!("{robot}/{sensor}"),
+                msg: radio(robot, data)?,
             },
         };
         Ok(Decoded::Event(event))
     }
 }
 
-/// A CDR message (4-byte encapsulation header, then the data). Decoded with RustDDS's
-/// `cdr-encoding`, which checks every length against the bytes left before it allocates, so
-/// a corrupt length cannot make it reserve gigabytes.
 fn cdr<'de, T: Deserialize<'de>>(data: &'de [u8]) -> Result<T, CdrError> {
-    let (decoded, len) = match data {
-        [0, 1, _, _, rest @ ..] => (
-            cdr_encoding::from_bytes::<T, byteorder::LittleEndian>(rest),
-            rest.len(),
-        ),
-        [0, 0, _, _, rest @ ..] => (
-            cdr_encoding::from_bytes::<T, byteorder::BigEndian>(rest),
-            rest.len(),
-        ),
-        _ => return Err(CdrError::NotCdr(data[..data.len().min(4)].to_vec())),
-    };
-    match decoded {
-        Ok((value, used)) if used == len => Ok(value),
-        Ok((_, used)) => Err(CdrError::Trailing { used, len }),
-        Err(e) => Err(CdrError::Decode(e.to_string())),
-    }
+    Ok(from_cdr(data)?)
 }
 
 fn ns(t: &Time) -> Result<u64, CdrError> {
-    if t.sec < 0 || t.nanosec >= 1_000_000_000 {
-        return Err(CdrError::Stamp {
-            sec: t.sec,
-            nanosec: t.nanosec,
+    Ok(t.ns()?)
+}
+
+/// A radio delivery, refused on another robot's topic.
+fn radio(robot: &str, data: &[u8]) -> Result<SensorMsg, CdrError> {
+    let m: CommsIn = cdr(data)?;
+    if m.to != robot {
+        return Err(CdrError::Delivery {
+            to: m.to.clone(),
+            robot: robot.to_string(),
         });
     }
-    Ok(t.sec as u64 * 1_000_000_000 + t.nanosec as u64)
-}
-
-fn pose(p: &Pose) -> hetsim_msgs::Pose {
-    // The recorded components as they are: no renormalization, so the bits come back.
-    let q = nalgebra::Quaternion::new(
-        p.orientation.w,
-        p.orientation.x,
-        p.orientation.y,
-        p.orientation.z,
-    );
-    nalgebra::Isometry3::from_parts(
-        nalgebra::Translation3::new(p.position.x, p.position.y, p.position.z),
-        nalgebra::UnitQuaternion::new_unchecked(q),
-    )
-}
-
-fn sensor_msg(robot: &str, sensor: &str, schema: &str, data: &[u8]) -> Result<SensorMsg, CdrError> {
-    let sensor = sensor.to_string();
-    Ok(match schema {
-        "sensor_msgs/msg/Image" => {
-            let m: ImageIn = cdr(data)?;
-            let encoding = PixelEncoding::from_ros_name(&m.encoding)
-                .ok_or_else(|| CdrError::ImageEncoding(m.encoding.clone()))?;
-            if m.step != m.width.saturating_mul(encoding.channels()) {
-                return Err(CdrError::ImageStep {
-                    step: m.step,
-                    width: m.width,
-                    encoding: m.encoding.clone(),
-                });
-            }
-            SensorMsg::Image(Image {
-                stamp_ns: ns(&m.header.stamp)?,
-                sensor,
-                width: m.width,
-                height: m.height,
-                encoding,
-                data: m.data.into_vec(),
-            })
-        }
-        "sensor_msgs/msg/LaserScan" => {
-            let m: LaserScanIn = cdr(data)?;
-            SensorMsg::LaserScan(LaserScan {
-                stamp_ns: ns(&m.header.stamp)?,
-                sensor,
-                angle_min_rad: m.angle_min as f64,
-                angle_increment_rad: m.angle_increment as f64,
-                range_max_m: m.range_max as f64,
-                ranges_m: m.ranges,
-            })
-        }
-        "sensor_msgs/msg/Imu" => {
-            let m: Imu = cdr(data)?;
-            let v = |v: crate::record::ros2::Vector3| [v.x, v.y, v.z];
-            SensorMsg::Imu(ImuSample {
-                stamp_ns: ns(&m.header.stamp)?,
-                sensor,
-                angular_rate_radps: v(m.angular_velocity),
-                accel_mps2: v(m.linear_acceleration),
-            })
-        }
-        "hetsim_msgs/msg/GpsLocal" => {
-            let m: GpsLocal = cdr(data)?;
-            SensorMsg::Gps(GpsFix {
-                stamp_ns: ns(&m.header.stamp)?,
-                sensor,
-                position_m: [m.position.x, m.position.y, m.position.z],
-                sigma_m: m.sigma_m,
-            })
-        }
-        "hetsim_msgs/msg/Compass" => {
-            let m: Compass = cdr(data)?;
-            SensorMsg::Compass(CompassReading {
-                stamp_ns: ns(&m.header.stamp)?,
-                sensor,
-                heading_rad: m.heading_rad,
-            })
-        }
-        "hetsim_msgs/msg/WheelOdometry" => {
-            let m: WheelOdometry = cdr(data)?;
-            SensorMsg::WheelOdometry(hetsim_msgs::WheelOdometry {
-                stamp_ns: ns(&m.header.stamp)?,
-                sensor,
-                left_m: m.left_m,
-                right_m: m.right_m,
-            })
-        }
-        "hetsim_msgs/msg/ChildTracks" => {
-            let m: ChildTracksIn = cdr(data)?;
-            SensorMsg::ChildTracks(ChildTracks {
-                stamp_ns: ns(&m.header.stamp)?,
-                sensor,
-                tracks: m
-                    .tracks
-                    .into_iter()
-                    .map(|t| Track {
-                        child: t.child,
-                        position_m: [t.x, t.y],
-                    })
-                    .collect(),
-            })
-        }
-        "hetsim_msgs/msg/Rendezvous" => {
-            let m: RendezvousIn = cdr(data)?;
-            SensorMsg::Rendezvous(Rendezvous {
-                stamp_ns: ns(&m.header.stamp)?,
-                sensor,
-                other: m.other,
-                relative: pose(&m.pose),
-                sigma_m: m.sigma_m,
-                sigma_rad: m.sigma_rad,
-            })
-        }
-        "hetsim_msgs/msg/ImageMatch" => {
-            let m: ImageMatchIn = cdr(data)?;
-            SensorMsg::ImageMatch(ImageMatch {
-                stamp_ns: ns(&m.header.stamp)?,
-                sensor,
-                other: m.other,
-                other_stamp_ns: ns(&m.other_stamp)?,
-                relative: pose(&m.pose),
-                sigma_m: m.sigma_m,
-                sigma_rad: m.sigma_rad,
-            })
-        }
-        "hetsim_msgs/msg/Comms" => {
-            let m: CommsIn = cdr(data)?;
-            if m.to != robot {
-                return Err(CdrError::Delivery {
-                    to: m.to.clone(),
-                    robot: robot.to_string(),
-                });
-            }
-            SensorMsg::Comms(Delivered {
-                from: m.from,
-                topic: m.topic,
-                sent_ns: ns(&m.sent)?,
-                stamp_ns: ns(&m.header.stamp)?,
-                payload: m.payload.into_vec(),
-            })
-        }
-        other => {
-            return Err(CdrError::Schema {
-                schema: other.to_string(),
-                known: String::new(),
-            })
-        }
-    })
-}
-
-#[derive(Deserialize)]
-struct ImageIn {
-    header: Header,
-    height: u32,
-    width: u32,
-    encoding: String,
-    _is_bigendian: u8,
-    step: u32,
-    data: serde_bytes::ByteBuf,
-}
-
-#[derive(Deserialize)]
-struct LaserScanIn {
-    header: Header,
-    angle_min: f32,
-    _angle_max: f32,
-    angle_increment: f32,
-    _time_increment: f32,
-    _scan_time: f32,
-    _range_min: f32,
-    range_max: f32,
-    ranges: Vec<f32>,
-    _intensities: Vec<f32>,
+    Ok(SensorMsg::Comms(Delivered {
+        from: m.from,
+        topic: m.topic,
+        sent_ns: ns(&m.sent)?,
+        stamp_ns: ns(&m.header.stamp)?,
+        payload: m.payload.into_vec(),
+    }))
 }
 
 #[derive(Deserialize)]
@@ -431,38 +214,6 @@ struct CommandIn {
     pitch_rad: f64,
     yaw_rate_radps: f64,
     climb_rate_mps: f64,
-}
-
-#[derive(Deserialize)]
-struct ChildTrackIn {
-    child: String,
-    x: f64,
-    y: f64,
-}
-
-#[derive(Deserialize)]
-struct ChildTracksIn {
-    header: Header,
-    tracks: Vec<ChildTrackIn>,
-}
-
-#[derive(Deserialize)]
-struct RendezvousIn {
-    header: Header,
-    other: String,
-    pose: Pose,
-    sigma_m: f64,
-    sigma_rad: f64,
-}
-
-#[derive(Deserialize)]
-struct ImageMatchIn {
-    header: Header,
-    other: String,
-    other_stamp: Time,
-    pose: Pose,
-    sigma_m: f64,
-    sigma_rad: f64,
 }
 
 #[derive(Deserialize)]

@@ -40,19 +40,7 @@ pub(crate) mod ros2;
 
 pub use meta::{OUTCOME_METADATA, RUN_METADATA};
 
-/// Latitude and longitude (degrees) and altitude (metres) of the world origin: LAAS-CNRS,
-/// Toulouse. Any origin would do; this one is documented so positions can be reproduced.
-pub const GEO_ORIGIN: (f64, f64, f64) = (43.5628, 1.4767, 150.0);
-
-const EARTH_RADIUS_M: f64 = 6_378_137.0;
-
-/// Latitude, longitude (degrees) and altitude of a point of the world frame (east, north, up).
-fn geo(position_m: [f64; 3]) -> (f64, f64, f64) {
-    let (lat0, lon0, alt0) = GEO_ORIGIN;
-    let lat = lat0 + (position_m[1] / EARTH_RADIUS_M).to_degrees();
-    let lon = lon0 + (position_m[0] / (EARTH_RADIUS_M * lat0.to_radians().cos())).to_degrees();
-    (lat, lon, alt0 + position_m[2])
-}
+pub use hetsim_sensors::ros2::GEO_ORIGIN;
 
 /// How a recording encodes its messages.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -230,7 +218,7 @@ impl Recorder {
         };
         self.write_cdr(
             &format!("/{robot}/truth"),
-            "geometry_msgs/msg/PoseStamped",
+            ros2::POSE_STAMPED,
             stamp_ns,
             &ros2::PoseStamped {
                 header: header("world"),
@@ -239,7 +227,7 @@ impl Recorder {
         );
         self.write_cdr(
             "/tf",
-            "tf2_msgs/msg/TFMessage",
+            ros2::TF_MESSAGE,
             stamp_ns,
             &ros2::TfMessage {
                 transforms: vec![ros2::TransformStamped {
@@ -286,12 +274,7 @@ impl Recorder {
             }
             Command::Stop => {}
         }
-        self.write_cdr(
-            &format!("/{robot}/cmd"),
-            "hetsim_msgs/msg/Command",
-            stamp_ns,
-            &m,
-        );
+        self.write_cdr(&format!("/{robot}/cmd"), ros2::COMMAND, stamp_ns, &m);
     }
 
     /// The frame of a robot's sensor, with its `/tf_static` transform written the first time.
@@ -309,7 +292,7 @@ impl Recorder {
         if self.static_frames.insert(frame.clone()) {
             self.write_cdr(
                 "/tf_static",
-                "tf2_msgs/msg/TFMessage",
+                ros2::TF_MESSAGE,
                 stamp_ns,
                 &ros2::TfMessage {
                     transforms: vec![ros2::TransformStamped {
@@ -355,207 +338,17 @@ impl Recorder {
     ) {
         let t = msg.stamp_ns();
         let sensor = topic.split_once('/').map_or(topic, |(_, s)| s);
-        let header = |frame: String| ros2::Header {
-            stamp: ros2::Time::of(t),
-            frame_id: frame,
-        };
-        let pose = ros2::Pose::of;
         let topic = format!("/{topic}");
-        match msg {
-            // The engine records every robot's truth itself, oracle or not.
-            SensorMsg::TruthPose(_) => {}
-            SensorMsg::Image(m) => {
-                let frame = self.sensor_frame(robot, sensor, body_from_sensor, t);
-                self.write_cdr(
-                    &topic,
-                    "sensor_msgs/msg/Image",
-                    t,
-                    &ros2::Image {
-                        header: header(frame),
-                        height: m.height,
-                        width: m.width,
-                        encoding: m.encoding.ros_name(),
-                        is_bigendian: 0,
-                        step: m.width * m.encoding.channels(),
-                        data: &m.data,
-                    },
-                );
-            }
-            SensorMsg::Gps(m) => {
-                let frame = self.sensor_frame(robot, sensor, body_from_sensor, t);
-                let (latitude, longitude, altitude) = geo(m.position_m);
-                let var = m.sigma_m * m.sigma_m;
-                self.write_cdr(
-                    &topic,
-                    "sensor_msgs/msg/NavSatFix",
-                    t,
-                    &ros2::NavSatFix {
-                        header: header(frame),
-                        status: ros2::NavSatStatus {
-                            status: 0,
-                            service: 1,
-                        },
-                        latitude,
-                        longitude,
-                        altitude,
-                        position_covariance: [var, 0.0, 0.0, 0.0, var, 0.0, 0.0, 0.0, var],
-                        position_covariance_type: 2,
-                    },
-                );
-                // The fix as the robot received it, in the local frame: WGS-84 does not
-                // round-trip to the same bits, and replay must feed the same bytes.
-                let [x, y, z] = m.position_m;
-                self.write_cdr(
-                    &format!("{topic}/local"),
-                    "hetsim_msgs/msg/GpsLocal",
-                    t,
-                    &ros2::GpsLocal {
-                        header: ros2::Header {
-                            stamp: ros2::Time::of(t),
-                            frame_id: "world".into(),
-                        },
-                        position: ros2::Vector3 { x, y, z },
-                        sigma_m: m.sigma_m,
-                    },
-                );
-            }
-            SensorMsg::LaserScan(m) => {
-                let frame = self.sensor_frame(robot, sensor, body_from_sensor, t);
-                let last =
-                    m.angle_min_rad + m.angle_increment_rad * (m.ranges_m.len().max(1) - 1) as f64;
-                self.write_cdr(
-                    &topic,
-                    "sensor_msgs/msg/LaserScan",
-                    t,
-                    &ros2::LaserScan {
-                        header: header(frame),
-                        angle_min: m.angle_min_rad as f32,
-                        angle_max: last as f32,
-                        angle_increment: m.angle_increment_rad as f32,
-                        time_increment: 0.0,
-                        scan_time: 0.0,
-                        range_min: 0.0,
-                        range_max: m.range_max_m as f32,
-                        ranges: &m.ranges_m,
-                        intensities: &[],
-                    },
-                );
-            }
-            SensorMsg::Imu(m) => {
-                let frame = self.sensor_frame(robot, sensor, body_from_sensor, t);
-                let [wx, wy, wz] = m.angular_rate_radps;
-                let [ax, ay, az] = m.accel_mps2;
-                let mut no_orientation = [0.0; 9];
-                no_orientation[0] = -1.0;
-                self.write_cdr(
-                    &topic,
-                    "sensor_msgs/msg/Imu",
-                    t,
-                    &ros2::Imu {
-                        header: header(frame),
-                        orientation: ros2::Quaternion {
-                            x: 0.0,
-                            y: 0.0,
-                            z: 0.0,
-                            w: 1.0,
-                        },
-                        orientation_covariance: no_orientation,
-                        angular_velocity: ros2::Vector3 {
-                            x: wx,
-                            y: wy,
-                            z: wz,
-                        },
-                        angular_velocity_covariance: [0.0; 9],
-                        linear_acceleration: ros2::Vector3 {
-                            x: ax,
-                            y: ay,
-                            z: az,
-                        },
-                        linear_acceleration_covariance: [0.0; 9],
-                    },
-                );
-            }
-            SensorMsg::Compass(m) => {
-                let frame = self.sensor_frame(robot, sensor, body_from_sensor, t);
-                self.write_cdr(
-                    &topic,
-                    "hetsim_msgs/msg/Compass",
-                    t,
-                    &ros2::Compass {
-                        header: header(frame),
-                        heading_rad: m.heading_rad,
-                    },
-                );
-            }
-            SensorMsg::WheelOdometry(m) => {
-                let frame = self.sensor_frame(robot, sensor, body_from_sensor, t);
-                self.write_cdr(
-                    &topic,
-                    "hetsim_msgs/msg/WheelOdometry",
-                    t,
-                    &ros2::WheelOdometry {
-                        header: header(frame),
-                        left_m: m.left_m,
-                        right_m: m.right_m,
-                    },
-                );
-            }
-            SensorMsg::ChildTracks(m) => {
-                let tracks = m
-                    .tracks
-                    .iter()
-                    .map(|k| ros2::ChildTrack {
-                        child: &k.child,
-                        x: k.position_m[0],
-                        y: k.position_m[1],
-                    })
-                    .collect();
-                self.write_cdr(
-                    &topic,
-                    "hetsim_msgs/msg/ChildTracks",
-                    t,
-                    &ros2::ChildTracks {
-                        header: header("world".into()),
-                        tracks,
-                    },
-                );
-            }
-            SensorMsg::Rendezvous(m) => {
-                let frame = self.sensor_frame(robot, sensor, body_from_sensor, t);
-                self.write_cdr(
-                    &topic,
-                    "hetsim_msgs/msg/Rendezvous",
-                    t,
-                    &ros2::Rendezvous {
-                        header: header(frame),
-                        other: &m.other,
-                        pose: pose(&m.relative),
-                        sigma_m: m.sigma_m,
-                        sigma_rad: m.sigma_rad,
-                    },
-                );
-            }
-            SensorMsg::ImageMatch(m) => {
-                self.write_cdr(
-                    &topic,
-                    "hetsim_msgs/msg/ImageMatch",
-                    t,
-                    &ros2::ImageMatch {
-                        header: header(format!("{robot}/base_link")),
-                        other: &m.other,
-                        other_stamp: ros2::Time::of(m.other_stamp_ns),
-                        pose: pose(&m.relative),
-                        sigma_m: m.sigma_m,
-                        sigma_rad: m.sigma_rad,
-                    },
-                );
-            }
-            SensorMsg::Comms(m) => self.write_cdr(
+        if let SensorMsg::Comms(m) = msg {
+            return self.write_cdr(
                 &format!("/{robot}/radio"),
-                "hetsim_msgs/msg/Comms",
+                ros2::COMMS,
                 t,
                 &ros2::Comms {
-                    header: header(format!("{robot}/base_link")),
+                    header: ros2::Header {
+                        stamp: ros2::Time::of(t),
+                        frame_id: format!("{robot}/base_link"),
+                    },
                     from: &m.from,
                     to: robot,
                     topic: &m.topic,
@@ -563,7 +356,22 @@ impl Recorder {
                     bytes: m.payload.len().min(u32::MAX as usize) as u32,
                     payload: &m.payload,
                 },
-            ),
+            );
+        }
+        // The sensor's frame, its mount written to /tf_static before the first message that
+        // names it.
+        let mut sensor_frame = || self.sensor_frame(robot, sensor, body_from_sensor, t);
+        let mut frames = hetsim_sensors::ros2::Frames {
+            stamp_ns: t,
+            sensor: &mut sensor_frame,
+            body: format!("{robot}/base_link"),
+        };
+        // The engine records every robot's truth itself, oracle or not.
+        let Some(encoded) = hetsim_sensors::ros2::encode(msg, &mut frames) else {
+            return;
+        };
+        for e in encoded {
+            self.write_bytes(&format!("{topic}{}", e.suffix), e.schema, t, &e.data);
         }
     }
 

@@ -33,6 +33,7 @@
 pub mod camera;
 mod kinds;
 pub mod relative;
+pub mod ros2;
 mod suite;
 
 pub use suite::{ImuTruth, Sample, SensorSuite};

@@ -5,8 +5,9 @@
 //! base64). The others use `hetsim.*` schemas written here. Foxglove opens it; ROS 2 tools
 //! read only CDR, which is the default encoding (see `record.rs`).
 
-use super::{geo, Recorder};
+use super::Recorder;
 use hetsim_msgs::{Command, Pose, SensorMsg};
+use hetsim_sensors::ros2::geo;
 use serde_json::{json, Value};
 
 fn stamp(ns: u64) -> Value {

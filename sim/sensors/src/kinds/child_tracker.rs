@@ -3,10 +3,13 @@
 //! distributed size, in the parent's heading frame.
 
 use super::{At, Model};
+use crate::ros2::{from_cdr, with_deps, DecodeError, Encoded, Frames, Header, Ros2Message};
+use crate::ros2::{HEADER, TIME};
 use hetsim_core::SimRng;
 use hetsim_msgs::{yaw_of, ChildTracks, SensorMsg, Track};
 use rand::RngExt;
 use rand_distr::{Distribution, Normal};
+use serde::{Deserialize, Serialize};
 
 pub(crate) struct ChildTracker {
     pub range_m: f64,
@@ -56,5 +59,71 @@ impl Model for ChildTracker {
             sensor: at.sensor.clone(),
             tracks,
         })]
+    }
+}
+
+const CHILD_TRACK: (&str, &str) = (
+    "hetsim_msgs/ChildTrack",
+    "# A child's position on the floor as the parent's tracker measured it, in the parent's body frame (x forward, y left).\nstring child\nfloat64 x\nfloat64 y\n",
+);
+
+/// `hetsim_msgs/ChildTrack`.
+#[derive(Serialize, Deserialize)]
+struct Ros2ChildTrack {
+    child: String,
+    x: f64,
+    y: f64,
+}
+
+/// `hetsim_msgs/msg/ChildTracks`.
+#[derive(Serialize, Deserialize)]
+struct Ros2ChildTracks {
+    header: Header,
+    tracks: Vec<Ros2ChildTrack>,
+}
+
+impl Ros2Message for ChildTracks {
+    const SCHEMA: &'static str = "hetsim_msgs/msg/ChildTracks";
+
+    fn definitions() -> Vec<(&'static str, String)> {
+        vec![(
+            Self::SCHEMA,
+            with_deps(
+                "std_msgs/Header header\nhetsim_msgs/ChildTrack[] tracks\n",
+                &[HEADER, TIME, CHILD_TRACK],
+            ),
+        )]
+    }
+
+    fn encode(&self, frames: &mut Frames) -> Vec<Encoded> {
+        let m = Ros2ChildTracks {
+            header: frames.header("world".into()),
+            tracks: self
+                .tracks
+                .iter()
+                .map(|k| Ros2ChildTrack {
+                    child: k.child.clone(),
+                    x: k.position_m[0],
+                    y: k.position_m[1],
+                })
+                .collect(),
+        };
+        vec![Encoded::on_topic(Self::SCHEMA, &m)]
+    }
+
+    fn decode(data: &[u8], sensor: String) -> Result<SensorMsg, DecodeError> {
+        let m: Ros2ChildTracks = from_cdr(data)?;
+        Ok(SensorMsg::ChildTracks(ChildTracks {
+            stamp_ns: m.header.stamp.ns()?,
+            sensor,
+            tracks: m
+                .tracks
+                .into_iter()
+                .map(|t| Track {
+                    child: t.child,
+                    position_m: [t.x, t.y],
+                })
+                .collect(),
+        }))
     }
 }

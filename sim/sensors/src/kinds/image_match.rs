@@ -4,8 +4,11 @@
 
 use super::{At, Model};
 use crate::relative::noisy_relative;
+use crate::ros2::{self, from_cdr, with_deps, DecodeError, Encoded, Frames, Header, Ros2Message};
+use crate::ros2::{Time, HEADER, POINT, POSE, QUATERNION, TIME};
 use hetsim_core::SimRng;
 use hetsim_msgs::{ImageMatch as Matched, SensorMsg};
+use serde::{Deserialize, Serialize};
 use std::collections::BTreeSet;
 
 pub(crate) struct ImageMatch {
@@ -51,5 +54,56 @@ impl Model for ImageMatch {
             sigma_m: self.sigma_m,
             sigma_rad: sr,
         })]
+    }
+}
+
+/// `hetsim_msgs/msg/ImageMatch`.
+#[derive(Serialize, Deserialize)]
+struct Ros2ImageMatch {
+    header: Header,
+    other: String,
+    other_stamp: Time,
+    pose: ros2::Pose,
+    sigma_m: f64,
+    sigma_rad: f64,
+}
+
+/// In the body's frame (the match relates body poses).
+impl Ros2Message for Matched {
+    const SCHEMA: &'static str = "hetsim_msgs/msg/ImageMatch";
+
+    fn definitions() -> Vec<(&'static str, String)> {
+        vec![(
+            Self::SCHEMA,
+            with_deps(
+                "# Oracle (ablations only): the pose relative to another robot's key frame at other_stamp.\nstd_msgs/Header header\nstring other\nbuiltin_interfaces/Time other_stamp\ngeometry_msgs/Pose pose\nfloat64 sigma_m\nfloat64 sigma_rad\n",
+                &[HEADER, TIME, POSE, POINT, QUATERNION],
+            ),
+        )]
+    }
+
+    fn encode(&self, frames: &mut Frames) -> Vec<Encoded> {
+        let m = Ros2ImageMatch {
+            header: frames.header(frames.body.clone()),
+            other: self.other.clone(),
+            other_stamp: Time::of(self.other_stamp_ns),
+            pose: ros2::Pose::of(&self.relative),
+            sigma_m: self.sigma_m,
+            sigma_rad: self.sigma_rad,
+        };
+        vec![Encoded::on_topic(Self::SCHEMA, &m)]
+    }
+
+    fn decode(data: &[u8], sensor: String) -> Result<SensorMsg, DecodeError> {
+        let m: Ros2ImageMatch = from_cdr(data)?;
+        Ok(SensorMsg::ImageMatch(Matched {
+            stamp_ns: m.header.stamp.ns()?,
+            sensor,
+            other: m.other,
+            other_stamp_ns: m.other_stamp.ns()?,
+            relative: m.pose.pose(),
+            sigma_m: m.sigma_m,
+            sigma_rad: m.sigma_rad,
+        }))
     }
 }

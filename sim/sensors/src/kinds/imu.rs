@@ -2,9 +2,12 @@
 //! constant biases and white noise.
 
 use super::{normal, At, ImuState, Model};
+use crate::ros2::{self, from_cdr, with_deps, DecodeError, Encoded, Frames, Header, Ros2Message};
+use crate::ros2::{HEADER, QUATERNION, TIME, VECTOR3};
 use hetsim_core::SimRng;
 use hetsim_msgs::{ImuSample, Pose, SensorMsg};
 use nalgebra::Vector3;
+use serde::{Deserialize, Serialize};
 
 /// Gravity, m/s^2.
 const GRAVITY: f64 = 9.81;
@@ -86,4 +89,72 @@ fn imu_truth(history: &[(u64, Pose)]) -> ([f64; 3], [f64; 3]) {
     };
     let f = p1.rotation.inverse() * (accel + Vector3::new(0.0, 0.0, GRAVITY));
     ([w.x, w.y, w.z], [f.x, f.y, f.z])
+}
+
+/// `sensor_msgs/msg/Imu`.
+#[derive(Serialize, Deserialize)]
+struct Ros2Imu {
+    header: Header,
+    orientation: ros2::Quaternion,
+    orientation_covariance: [f64; 9],
+    angular_velocity: ros2::Vector3,
+    angular_velocity_covariance: [f64; 9],
+    linear_acceleration: ros2::Vector3,
+    linear_acceleration_covariance: [f64; 9],
+}
+
+/// Without an orientation (`orientation_covariance[0] = -1`, as the type says).
+impl Ros2Message for ImuSample {
+    const SCHEMA: &'static str = "sensor_msgs/msg/Imu";
+
+    fn definitions() -> Vec<(&'static str, String)> {
+        vec![(
+            Self::SCHEMA,
+            with_deps(
+                "std_msgs/Header header\ngeometry_msgs/Quaternion orientation\nfloat64[9] orientation_covariance\ngeometry_msgs/Vector3 angular_velocity\nfloat64[9] angular_velocity_covariance\ngeometry_msgs/Vector3 linear_acceleration\nfloat64[9] linear_acceleration_covariance\n",
+                &[HEADER, TIME, QUATERNION, VECTOR3],
+            ),
+        )]
+    }
+
+    fn encode(&self, frames: &mut Frames) -> Vec<Encoded> {
+        let [wx, wy, wz] = self.angular_rate_radps;
+        let [ax, ay, az] = self.accel_mps2;
+        let mut no_orientation = [0.0; 9];
+        no_orientation[0] = -1.0;
+        let m = Ros2Imu {
+            header: frames.in_sensor(),
+            orientation: ros2::Quaternion {
+                x: 0.0,
+                y: 0.0,
+                z: 0.0,
+                w: 1.0,
+            },
+            orientation_covariance: no_orientation,
+            angular_velocity: ros2::Vector3 {
+                x: wx,
+                y: wy,
+                z: wz,
+            },
+            angular_velocity_covariance: [0.0; 9],
+            linear_acceleration: ros2::Vector3 {
+                x: ax,
+                y: ay,
+                z: az,
+            },
+            linear_acceleration_covariance: [0.0; 9],
+        };
+        vec![Encoded::on_topic(Self::SCHEMA, &m)]
+    }
+
+    fn decode(data: &[u8], sensor: String) -> Result<SensorMsg, DecodeError> {
+        let m: Ros2Imu = from_cdr(data)?;
+        let v = |v: ros2::Vector3| [v.x, v.y, v.z];
+        Ok(SensorMsg::Imu(ImuSample {
+            stamp_ns: m.header.stamp.ns()?,
+            sensor,
+            angular_rate_radps: v(m.angular_velocity),
+            accel_mps2: v(m.linear_acceleration),
+        }))
+    }
 }

@@ -2,9 +2,12 @@
 //! and noise growing with the distance.
 
 use super::{normal, At, Model};
+use crate::ros2::{from_cdr, with_deps, DecodeError, Encoded, Frames, Header, Ros2Message};
+use crate::ros2::{HEADER, TIME};
 use hetsim_core::SimRng;
 use hetsim_msgs::{SensorMsg, WheelOdometry as Reading};
 use hetsim_physics::Physics;
+use serde::{Deserialize, Serialize};
 
 pub(crate) struct WheelOdometry {
     noise_per_m: f64,
@@ -45,5 +48,46 @@ impl Model for WheelOdometry {
             left_m,
             right_m,
         })]
+    }
+}
+
+/// `hetsim_msgs/msg/WheelOdometry`.
+#[derive(Serialize, Deserialize)]
+struct Ros2WheelOdometry {
+    header: Header,
+    left_m: f64,
+    right_m: f64,
+}
+
+impl Ros2Message for Reading {
+    const SCHEMA: &'static str = "hetsim_msgs/msg/WheelOdometry";
+
+    fn definitions() -> Vec<(&'static str, String)> {
+        vec![(
+            Self::SCHEMA,
+            with_deps(
+                "# Distance each wheel rolled since the last message, metres.\nstd_msgs/Header header\nfloat64 left_m\nfloat64 right_m\n",
+                &[HEADER, TIME],
+            ),
+        )]
+    }
+
+    fn encode(&self, frames: &mut Frames) -> Vec<Encoded> {
+        let m = Ros2WheelOdometry {
+            header: frames.in_sensor(),
+            left_m: self.left_m,
+            right_m: self.right_m,
+        };
+        vec![Encoded::on_topic(Self::SCHEMA, &m)]
+    }
+
+    fn decode(data: &[u8], sensor: String) -> Result<SensorMsg, DecodeError> {
+        let m: Ros2WheelOdometry = from_cdr(data)?;
+        Ok(SensorMsg::WheelOdometry(Reading {
+            stamp_ns: m.header.stamp.ns()?,
+            sensor,
+            left_m: m.left_m,
+            right_m: m.right_m,
+        }))
     }
 }

@@ -4,9 +4,12 @@
 
 use super::{At, Model};
 use crate::relative::noisy_relative;
+use crate::ros2::{self, from_cdr, with_deps, DecodeError, Encoded, Frames, Header, Ros2Message};
+use crate::ros2::{HEADER, POINT, POSE, QUATERNION, TIME};
 use hetsim_core::SimRng;
 use hetsim_msgs::{Rendezvous as Seen, SensorMsg};
 use nalgebra::Vector3;
+use serde::{Deserialize, Serialize};
 
 pub(crate) struct Rendezvous {
     pub range_m: f64,
@@ -55,5 +58,52 @@ impl Model for Rendezvous {
             });
         }
         seen.into_iter().map(SensorMsg::Rendezvous).collect()
+    }
+}
+
+/// `hetsim_msgs/msg/Rendezvous`.
+#[derive(Serialize, Deserialize)]
+struct Ros2Rendezvous {
+    header: Header,
+    other: String,
+    pose: ros2::Pose,
+    sigma_m: f64,
+    sigma_rad: f64,
+}
+
+impl Ros2Message for Seen {
+    const SCHEMA: &'static str = "hetsim_msgs/msg/Rendezvous";
+
+    fn definitions() -> Vec<(&'static str, String)> {
+        vec![(
+            Self::SCHEMA,
+            with_deps(
+                "# The other robot's pose in this robot's body frame, with the noise it was drawn with.\nstd_msgs/Header header\nstring other\ngeometry_msgs/Pose pose\nfloat64 sigma_m\nfloat64 sigma_rad\n",
+                &[HEADER, TIME, POSE, POINT, QUATERNION],
+            ),
+        )]
+    }
+
+    fn encode(&self, frames: &mut Frames) -> Vec<Encoded> {
+        let m = Ros2Rendezvous {
+            header: frames.in_sensor(),
+            other: self.other.clone(),
+            pose: ros2::Pose::of(&self.relative),
+            sigma_m: self.sigma_m,
+            sigma_rad: self.sigma_rad,
+        };
+        vec![Encoded::on_topic(Self::SCHEMA, &m)]
+    }
+
+    fn decode(data: &[u8], sensor: String) -> Result<SensorMsg, DecodeError> {
+        let m: Ros2Rendezvous = from_cdr(data)?;
+        Ok(SensorMsg::Rendezvous(Seen {
+            stamp_ns: m.header.stamp.ns()?,
+            sensor,
+            other: m.other,
+            relative: m.pose.pose(),
+            sigma_m: m.sigma_m,
+            sigma_rad: m.sigma_rad,
+        }))
     }
 }
