@@ -19,6 +19,15 @@
 //!
 //! Everything works on [`Gray`] images in the optical frame convention (x right, y down,
 //! z forward; pixel centres at integer coordinates).
+//!
+//! Why hand-written: these are the seeds' own processes, and what the evaluation measures is
+//! how the robot software built from them behaves, so each is written as the papers describe
+//! it (Harris with the 3 x 3 partition, ZNCC inside the EKF's ellipse, the segment growing and
+//! its 3D tracking, the key frames' steered BRIEF) and its definition is part of the result.
+//! The candidates do not fit: OpenCV is C++ (a system library and bindings in a crate every
+//! robot links), and `imageproc` has other definitions (FAST corners, whole-image template
+//! matching without the predicted ellipse, Hough lines rather than LSD-class segments). The
+//! generic maths is not hand-written: nalgebra's decompositions and rand's generators.
 
 pub mod appearance;
 pub mod harris;

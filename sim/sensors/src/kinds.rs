@@ -7,7 +7,7 @@
 //!
 //! Adding a kind: its table in `hetsim_scene::Sensor` (with its checks), its message in
 //! `hetsim_msgs`, a module here (model and ROS 2 form), its line in [`model_of`] and in
-//! `ros2`'s registry ([`crate::ros2::KINDS`], [`crate::ros2::encode`]), and its JSON
+//! `ros2.rs`'s registry ([`crate::ros2::KINDS`], [`crate::ros2::encode`]), and its JSON
 //! encoding in `hetsim-io` (`record/json.rs`).
 
 mod child_tracker;
@@ -19,7 +19,6 @@ mod laser;
 mod odometry;
 mod rendezvous;
 
-use crate::ros2::{Encoded, Frames, Kind, Ros2Message};
 use hetsim_core::SimRng;
 use hetsim_msgs::{Pose, SensorMsg};
 use hetsim_physics::Physics;
@@ -186,35 +185,4 @@ pub(crate) fn model_of(spec: &Sensor, rng: &mut SimRng) -> Option<Box<dyn Model>
 pub(crate) fn normal(rng: &mut SimRng, sigma: f64) -> f64 {
     let n: f64 = StandardNormal.sample(rng);
     n * sigma
-}
-
-/// Every sensor kind's ROS 2 form, for replay and the recording's schemas (adding a kind:
-/// its line here and in [`encode`]).
-pub const KINDS: [Kind; 9] = [
-    Kind::of::<hetsim_msgs::Image>(),
-    Kind::of::<hetsim_msgs::LaserScan>(),
-    Kind::of::<hetsim_msgs::ImuSample>(),
-    Kind::of::<hetsim_msgs::GpsFix>(),
-    Kind::of::<hetsim_msgs::CompassReading>(),
-    Kind::of::<hetsim_msgs::WheelOdometry>(),
-    Kind::of::<hetsim_msgs::ChildTracks>(),
-    Kind::of::<hetsim_msgs::Rendezvous>(),
-    Kind::of::<hetsim_msgs::ImageMatch>(),
-];
-
-/// A sensor's message as the recorder writes it; `None` for what is not a sensor's (the
-/// truth of an oracle, which the recorder writes for every robot itself, and the radio).
-pub fn encode(msg: &SensorMsg, frames: &mut Frames) -> Option<Vec<Encoded>> {
-    Some(match msg {
-        SensorMsg::TruthPose(_) | SensorMsg::Comms(_) => return None,
-        SensorMsg::Image(m) => m.encode(frames),
-        SensorMsg::Gps(m) => m.encode(frames),
-        SensorMsg::LaserScan(m) => m.encode(frames),
-        SensorMsg::Imu(m) => m.encode(frames),
-        SensorMsg::Compass(m) => m.encode(frames),
-        SensorMsg::WheelOdometry(m) => m.encode(frames),
-        SensorMsg::ChildTracks(m) => m.encode(frames),
-        SensorMsg::Rendezvous(m) => m.encode(frames),
-        SensorMsg::ImageMatch(m) => m.encode(frames),
-    })
 }

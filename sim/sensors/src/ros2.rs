@@ -3,7 +3,8 @@
 //! header, by the `cdr` crate) and its decoding back into the message the robot received,
 //! bit for bit where the ROS type keeps the bits. Each kind implements [`Ros2Message`] in its
 //! own module (`kinds/*.rs`, the camera's image in `camera.rs`); [`KINDS`] and [`encode`]
-//! (in `kinds.rs`, beside the models' registry) list them. The recorder and replay (`hetsim-io`) add the topics that are not a sensor's:
+//! list them (this module names the message types only, never the kind modules, so the
+//! kinds depend on it and not the other way). The recorder and replay (`hetsim-io`) add the topics that are not a sensor's:
 //! truth, `/tf`, commands and the radio.
 //!
 //! Standard types are the ROS 2 (Humble onwards) definitions (`sensor_msgs/msg/Image`,
@@ -327,7 +328,36 @@ impl Kind {
     }
 }
 
-pub use crate::kinds::{encode, KINDS};
+/// Every sensor kind's ROS 2 form, for replay and the recording's schemas (adding a kind:
+/// its line here and in [`encode`]).
+pub const KINDS: [Kind; 9] = [
+    Kind::of::<hetsim_msgs::Image>(),
+    Kind::of::<hetsim_msgs::LaserScan>(),
+    Kind::of::<hetsim_msgs::ImuSample>(),
+    Kind::of::<hetsim_msgs::GpsFix>(),
+    Kind::of::<hetsim_msgs::CompassReading>(),
+    Kind::of::<hetsim_msgs::WheelOdometry>(),
+    Kind::of::<hetsim_msgs::ChildTracks>(),
+    Kind::of::<hetsim_msgs::Rendezvous>(),
+    Kind::of::<hetsim_msgs::ImageMatch>(),
+];
+
+/// A sensor's message as the recorder writes it; `None` for what is not a sensor's (the
+/// truth of an oracle, which the recorder writes for every robot itself, and the radio).
+pub fn encode(msg: &SensorMsg, frames: &mut Frames) -> Option<Vec<Encoded>> {
+    Some(match msg {
+        SensorMsg::TruthPose(_) | SensorMsg::Comms(_) => return None,
+        SensorMsg::Image(m) => m.encode(frames),
+        SensorMsg::Gps(m) => m.encode(frames),
+        SensorMsg::LaserScan(m) => m.encode(frames),
+        SensorMsg::Imu(m) => m.encode(frames),
+        SensorMsg::Compass(m) => m.encode(frames),
+        SensorMsg::WheelOdometry(m) => m.encode(frames),
+        SensorMsg::ChildTracks(m) => m.encode(frames),
+        SensorMsg::Rendezvous(m) => m.encode(frames),
+        SensorMsg::ImageMatch(m) => m.encode(frames),
+    })
+}
 
 /// The definition of a sensor kind's schema.
 pub fn definition(schema: &str) -> Option<String> {

@@ -15,6 +15,10 @@ const LEVELS: usize = 1 << 12;
 
 /// The quantile function of the standard normal, Φ⁻¹(p) for 0 < p < 1 (Acklam's rational
 /// approximation, relative error below 1.2e-9).
+///
+/// Kept rather than `statrs`' `Normal::inverse_cdf` on purpose: the noise table is built from
+/// it once per camera, a byte-rounded pixel cannot show the difference, and another
+/// implementation's last bits could move table cells and with them every rendered digest.
 pub fn inverse_normal_cdf(p: f64) -> f64 {
     const A: [f64; 6] = [
         -3.969_683_028_665_376e1,
