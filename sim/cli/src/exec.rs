@@ -211,19 +211,20 @@ pub fn run_scenario(loaded: &Scenario, job: &Job<'_>) -> Result<hetsim_eval::Run
         }
         let metrics = hetsim_eval::Metrics::compute(loaded, &result)?;
         let wall = start.elapsed().as_secs_f64();
-        let timing = serde_json::json!({
-            "wall_secs": wall,
-            "sim_secs": result.sim_secs,
-            "realtime_factor": result.sim_secs / wall.max(1e-9),
-            "threads": rayon_threads(),
-            "frames_written": dumper.as_ref().map_or(0, |d| d.written()),
-        });
+        let timing = hetsim_eval::manifest::Timing {
+            frames_written: Some(dumper.as_ref().map_or(0, |d| d.written())),
+            realtime_factor: result.sim_secs / wall.max(1e-9),
+            replay_of: None,
+            sim_secs: result.sim_secs,
+            threads: Some(rayon_threads()),
+            wall_secs: wall,
+        };
         let files = hetsim_eval::write_run(
             loaded,
             result,
             &metrics,
             job.out,
-            timing,
+            &timing,
             dumper.is_some().then_some(staging.as_path()),
         )
         .context("writing results")?;

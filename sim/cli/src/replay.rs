@@ -204,12 +204,14 @@ pub fn replay(args: &ReplayArgs<'_>) -> Result<hetsim_eval::RunFiles> {
     let output = output?;
     let metrics = hetsim_eval::Metrics::compute(&scenario, &output)?;
     let wall = start.elapsed().as_secs_f64();
-    let timing = serde_json::json!({
-        "wall_secs": wall,
-        "sim_secs": output.sim_secs,
-        "realtime_factor": output.sim_secs / wall.max(1e-9),
-        "replay_of": args.source.display().to_string(),
-    });
+    let timing = hetsim_eval::manifest::Timing {
+        frames_written: None,
+        realtime_factor: output.sim_secs / wall.max(1e-9),
+        replay_of: Some(args.source.display().to_string()),
+        sim_secs: output.sim_secs,
+        threads: None,
+        wall_secs: wall,
+    };
     // A EuRoC dataset is named by the folder above mav0 (frames/<robot>/mav0: the robot).
     let named = match args.source.file_name() {
         Some(n) if n == "mav0" => args.source.parent().and_then(Path::file_name),
@@ -220,7 +222,7 @@ pub fn replay(args: &ReplayArgs<'_>) -> Result<hetsim_eval::RunFiles> {
         .out
         .clone()
         .unwrap_or_else(|| PathBuf::from("results/runs").join(format!("replay-{stem}")));
-    let files = hetsim_eval::write_run(&scenario, output, &metrics, Some(&out), timing, None)
+    let files = hetsim_eval::write_run(&scenario, output, &metrics, Some(&out), &timing, None)
         .context("writing results")?;
     Ok(files)
 }

@@ -278,16 +278,28 @@ fn made_by(dir: &Path) -> Result<Option<MadeBy>> {
     if !path.is_file() {
         return Ok(None);
     }
-    let manifest: serde_json::Value = serde_json::from_slice(
+    /// The manifest's fields that say what made the run, each absent in some older manifest.
+    #[derive(serde::Deserialize)]
+    struct Fields {
+        #[serde(default)]
+        build_sha256: String,
+        #[serde(default)]
+        files_sha256: std::collections::BTreeMap<String, String>,
+        #[serde(default)]
+        adapter: Option<Backend>,
+    }
+    #[derive(serde::Deserialize)]
+    struct Backend {
+        backend: String,
+    }
+    let fields: Fields = serde_json::from_slice(
         &std::fs::read(&path).with_context(|| format!("{}", path.display()))?,
     )
     .with_context(|| format!("{}: not a run's manifest", path.display()))?;
     Ok(Some(MadeBy {
-        build: manifest["build_sha256"].as_str().unwrap_or("").to_string(),
-        files: serde_json::from_value(manifest["files_sha256"].clone()).unwrap_or_default(),
-        backend: manifest["adapter"]["backend"]
-            .as_str()
-            .map(str::to_ascii_lowercase),
+        build: fields.build_sha256,
+        files: fields.files_sha256,
+        backend: fields.adapter.map(|a| a.backend.to_ascii_lowercase()),
     }))
 }
 

@@ -10,7 +10,9 @@ pub mod charts;
 pub mod coverage;
 pub mod drift;
 pub mod frames;
+pub mod json;
 pub mod localize;
+pub mod manifest;
 pub mod matching;
 pub mod metrics;
 pub mod regress;
@@ -33,23 +35,14 @@ use std::path::PathBuf;
 /// Why an evaluation could not be made or written.
 #[derive(Debug, thiserror::Error)]
 pub enum EvalError {
-    /// A run's `metrics.json` could not be read.
-    #[error("{}: {source}", path.display())]
-    ReadMetrics {
+    /// A results file (`metrics.json`, `manifest.json`, ...) is not what this version writes.
+    #[error("{}: not the file this hetsim writes there: {source}", path.display())]
+    Parse {
         /// The file.
         path: std::path::PathBuf,
-        /// Why.
+        /// The field's path in the document, and where and why it does not parse.
         #[source]
-        source: std::io::Error,
-    },
-    /// A run's `metrics.json` is not the metrics this version writes.
-    #[error("{}: not the metrics.json this hetsim writes: {source}", path.display())]
-    ParseMetrics {
-        /// The file.
-        path: std::path::PathBuf,
-        /// Where and why it does not parse.
-        #[source]
-        source: serde_json::Error,
+        source: serde_path_to_error::Error<serde_json::Error>,
     },
     /// A file could not be read or written.
     #[error(transparent)]

@@ -50,10 +50,13 @@ pub struct LinkJudged {
     /// RANSAC inliers.
     pub inliers: Option<usize>,
     /// Position error of the measured relative pose, metres.
+    #[serde(deserialize_with = "crate::stats::f64_or_null")]
     pub error_m: f64,
     /// Its rotation error, degrees.
+    #[serde(deserialize_with = "crate::stats::f64_or_null")]
     pub error_deg: f64,
     /// Its NEES under the link's own covariance (6 degrees of freedom).
+    #[serde(deserialize_with = "crate::stats::f64_or_null")]
     pub nees: f64,
     /// Whether it is a false match ([`FALSE_M`], [`FALSE_DEG`]).
     pub false_match: bool,

@@ -79,12 +79,7 @@ impl Metrics {
     /// they were written from (a renamed or retyped field is an error here, not a missing key
     /// in a caller).
     pub fn read(results: &std::path::Path) -> Result<Self, EvalError> {
-        let path = results.join("metrics.json");
-        let bytes = std::fs::read(&path).map_err(|source| EvalError::ReadMetrics {
-            path: path.clone(),
-            source,
-        })?;
-        serde_json::from_slice(&bytes).map_err(|source| EvalError::ParseMetrics { path, source })
+        crate::json::read(&results.join("metrics.json"))
     }
 
     /// Evaluates a run.

@@ -10,8 +10,7 @@ use crate::EvalError;
 use hetsim_core::files::{write_dir_atomic, FileError};
 use hetsim_engine::{tum_line, RunOutput};
 use hetsim_msgs::{ArtifactData, Pose};
-use hetsim_scene::{Scenario, Sensor};
-use serde_json::json;
+use hetsim_scene::Scenario;
 use std::path::{Path, PathBuf};
 
 /// Where the results went.
@@ -62,7 +61,7 @@ pub fn write_run(
     mut result: RunOutput,
     metrics: &Metrics,
     dest: Option<&Path>,
-    timing: serde_json::Value,
+    timing: &crate::manifest::Timing,
     frames: Option<&Path>,
 ) -> Result<RunFiles, EvalError> {
     let mut files = files(scenario, &result, metrics);
@@ -72,12 +71,12 @@ pub fn write_run(
     let digest = result.digest.hex();
     files.push((
         "manifest.json".to_string(),
-        serde_json::to_vec_pretty(&manifest(scenario, &result, &digest))
+        serde_json::to_vec_pretty(&crate::manifest::Manifest::of(scenario, &result, &digest))
             .expect("manifest serializes"),
     ));
     files.push((
         "timing.json".to_string(),
-        serde_json::to_vec_pretty(&timing).expect("timing serializes"),
+        serde_json::to_vec_pretty(timing).expect("timing serializes"),
     ));
     let dir = match dest {
         Some(d) => d.to_path_buf(),
@@ -130,61 +129,6 @@ pub fn build_sha256() -> &'static str {
         };
         hash().unwrap_or_else(|_| "unknown".into())
     })
-}
-
-/// `manifest.json`: what ran, on what, and the digest.
-fn manifest(scenario: &Scenario, result: &RunOutput, digest: &str) -> serde_json::Value {
-    json!({
-        "hetsim_version": env!("CARGO_PKG_VERSION"),
-        "build_sha256": build_sha256(),
-        "scenario": scenario.path.display().to_string(),
-        "files_sha256": scenario.file_hashes,
-        "seed": scenario.seed,
-        "dt_secs": scenario.clock.dt_secs(),
-        "duration_secs": scenario.duration_secs,
-        "resolved": {
-            "scenario": scenario.file,
-            "robots": scenario.robots.iter().map(|r| json!({"name": r.spec.name, "model": r.model})).collect::<Vec<_>>(),
-        },
-        "adapter": result.adapter.as_ref().map_or(serde_json::Value::Null, |a| json!({"name": a.name, "backend": a.backend, "driver": a.driver})),
-        "oracles": oracles(scenario),
-        "stacks": result.robots.iter().map(|r| json!({"robot": r.name, "digest": r.stack_digest})).collect::<Vec<_>>(),
-        "records": result.digest.records(),
-        "digest": digest,
-    })
-}
-
-/// Every place where the simulator's truth reaches robot software, for the manifest: the
-/// enabled `oracle_pose` sensors, and the emulated `image_match` sensors, which pair the key
-/// frames SLAM stacks report with the truth.
-fn oracles(scenario: &Scenario) -> Vec<serde_json::Value> {
-    let mut out = Vec::new();
-    for r in &scenario.robots {
-        for s in &r.model.sensors {
-            match s {
-                Sensor::OraclePose {
-                    name,
-                    rate_hz,
-                    enabled: true,
-                    ..
-                } => out.push(json!({
-                    "robot": r.spec.name,
-                    "sensor": name,
-                    "kind": "oracle_pose",
-                    "rate_hz": rate_hz,
-                    "gives": "the robot's exact world_from_body",
-                })),
-                Sensor::ImageMatch { name, .. } => out.push(json!({
-                    "robot": r.spec.name,
-                    "sensor": name,
-                    "kind": "image_match",
-                    "gives": "the relative pose to another robot's key frame, chosen and measured from the truth at the key frames SLAM stacks report (RobotStack::oracle_keyframes), plus noise",
-                })),
-                _ => {}
-            }
-        }
-    }
-    out
 }
 
 /// The run's files in the order the digest covers them (everything but the manifest and

@@ -22,12 +22,16 @@ pub struct EventMetrics {
     /// The other robot (empty for GPS).
     pub other: String,
     /// Position error of the robot's estimate just before the event, metres.
+    #[serde(deserialize_with = "crate::stats::f64_or_null")]
     pub error_before_m: f64,
     /// And just after the graph was optimized with it.
+    #[serde(deserialize_with = "crate::stats::f64_or_null")]
     pub error_after_m: f64,
     /// Altitude error before, metres (absolute).
+    #[serde(deserialize_with = "crate::stats::f64_or_null")]
     pub altitude_error_before_m: f64,
     /// Altitude error after, metres (absolute).
+    #[serde(deserialize_with = "crate::stats::f64_or_null")]
     pub altitude_error_after_m: f64,
 }
 
@@ -36,6 +40,7 @@ pub struct EventMetrics {
 pub struct RobotSlam {
     /// Mean normalized estimation error squared of the `slam` poses (6 degrees of freedom:
     /// 6 for a consistent estimate), over `nees_poses` poses.
+    #[serde(deserialize_with = "crate::stats::f64_or_null")]
     pub nees_mean: f64,
     /// Poses with truth and covariance.
     pub nees_poses: usize,

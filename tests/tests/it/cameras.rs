@@ -48,12 +48,9 @@ fn rendered_runs_deliver_images_at_their_rates_and_repeat_bit_for_bit() {
         // 2 s: c't-Bot cameras at 2 Hz, the parent's panorama at 5 Hz.
         assert_eq!(m.get("child1/camera"), Some(&4), "{m:?}");
         assert_eq!(m.get("parent/omni"), Some(&10), "{m:?}");
-        let manifest: serde_json::Value =
-            serde_json::from_slice(&std::fs::read(out.join("manifest.json")).unwrap()).unwrap();
+        let manifest = hetsim_eval::manifest::Manifest::read(&out).unwrap();
         assert!(
-            manifest["adapter"]["name"]
-                .as_str()
-                .is_some_and(|n| !n.is_empty()),
+            manifest.adapter.is_some_and(|a| !a.name.is_empty()),
             "the manifest names the adapter"
         );
     }

@@ -1,6 +1,7 @@
 //! Same inputs, same digest: across repeated runs, thread counts, and against a golden value.
 
 use hetsim_engine::RunOptions;
+use hetsim_eval::manifest::{Manifest, Timing};
 use hetsim_eval::{write_run, Metrics};
 use hetsim_scene::{load_scenario, LoadOptions};
 use hetsim_tests::{hetsim, printed_digest, repo, run_scenario};
@@ -23,7 +24,14 @@ fn digest_of(scenario: &str, seed: u64, secs: f64) -> String {
         result,
         &metrics,
         Some(&dir.path().join("run")),
-        serde_json::json!({}),
+        &Timing {
+            frames_written: None,
+            realtime_factor: 1.0,
+            replay_of: None,
+            sim_secs: secs,
+            threads: None,
+            wall_secs: secs,
+        },
         None,
     )
     .unwrap()
@@ -72,9 +80,10 @@ fn thread_count_does_not_change_the_digest() {
                 &[("RAYON_NUM_THREADS", threads)],
             );
             digests.push(printed_digest(&o));
-            let timing: serde_json::Value =
-                serde_json::from_slice(&std::fs::read(out.join("timing.json")).unwrap()).unwrap();
-            assert_eq!(timing["threads"], threads.parse::<u64>().unwrap());
+            let timing = Timing::read(&out)
+                .unwrap()
+                .expect("a run writes timing.json");
+            assert_eq!(timing.threads, Some(threads.parse().unwrap()));
         }
         assert_eq!(digests[0], digests[1], "{scenario}");
     }
@@ -133,26 +142,25 @@ fn run_writes_manifest_truth_and_metrics_in_the_promised_formats() {
         &[],
     );
     let digest = printed_digest(&o);
-    let manifest: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(out.join("manifest.json")).unwrap()).unwrap();
-    assert_eq!(manifest["digest"], digest.as_str());
-    assert_eq!(manifest["seed"], 1);
-    assert!(manifest["hetsim_version"].is_string());
+    let manifest = Manifest::read(&out).unwrap();
+    assert_eq!(manifest.digest, digest);
+    assert_eq!(manifest.seed, 1);
+    assert_eq!(manifest.hetsim_version, env!("CARGO_PKG_VERSION"));
     // Which build made it: the executable's SHA-256, 64 hex digits.
-    let build = manifest["build_sha256"].as_str().unwrap();
+    let build = &manifest.build_sha256;
     assert!(
         build.len() == 64 && build.bytes().all(|b| b.is_ascii_hexdigit()),
         "{build}"
     );
-    let hashes = manifest["files_sha256"].as_object().unwrap();
+    let hashes = &manifest.files_sha256;
     assert_eq!(
         hashes.len(),
         3,
         "scenario, parent and ctbot files: {hashes:?}"
     );
-    assert!(hashes.values().all(|h| h.as_str().unwrap().len() == 64));
+    assert!(hashes.values().all(|h| h.len() == 64));
     assert_eq!(
-        manifest["resolved"]["scenario"]["world"]["indoor"]["width_m"],
+        manifest.resolved["scenario"]["world"]["indoor"]["width_m"],
         8.0
     );
     let metrics = Metrics::read(&out).unwrap();

@@ -5,7 +5,6 @@
 
 use hetsim_eval::Metrics;
 use hetsim_tests::{hetsim_release_bin, printed_digest, repo};
-use serde_json::Value;
 use std::process::Command;
 
 /// The two-sided 95 % interval of one chi-square draw with 6 degrees of freedom (a pose's
@@ -40,13 +39,10 @@ fn the_full_village_earns_fig_7_with_consistent_covariances() {
         .output()
         .expect("hetsim starts");
     let digest = printed_digest(&o);
-    let manifest: Value =
-        serde_json::from_slice(&std::fs::read(out.join("manifest.json")).unwrap()).unwrap();
-    let adapter = &manifest["adapter"];
-    let (backend, driver) = (
-        adapter["backend"].as_str().unwrap_or("none"),
-        adapter["driver"].as_str().unwrap_or("none"),
-    );
+    let manifest = hetsim_eval::manifest::Manifest::read(&out).unwrap();
+    let (backend, driver) = manifest.adapter.as_ref().map_or(("none", "none"), |a| {
+        (a.backend.as_str(), a.driver.as_str())
+    });
     if (backend, driver) == (LAVAPIPE_DIGEST.0, LAVAPIPE_DIGEST.1) {
         assert_eq!(digest, LAVAPIPE_DIGEST.2, "the full village's digest moved");
     } else {

@@ -14,6 +14,7 @@
 //! refactor pass.
 
 use hetsim_eval::localize::load_database;
+use hetsim_eval::manifest::{Manifest, Timing};
 use hetsim_eval::team::{ParentLocalization, Tracking};
 use hetsim_eval::Metrics;
 use hetsim_msgs::CameraGeometry;
@@ -99,18 +100,16 @@ fn verify(
     let digest = printed_digest(output);
     // The run used the worker threads it was given.
     if let Some(threads) = threads {
-        let timing: Value =
-            serde_json::from_slice(&std::fs::read(out.join("timing.json")).unwrap()).unwrap();
-        assert_eq!(timing["threads"], threads.parse::<u64>().unwrap(), "{name}");
+        let timing = Timing::read(out)
+            .unwrap()
+            .expect("a run writes timing.json");
+        assert_eq!(timing.threads, Some(threads.parse().unwrap()), "{name}");
     }
     outputs(out);
-    let manifest: Value =
-        serde_json::from_slice(&std::fs::read(out.join("manifest.json")).unwrap()).unwrap();
-    let adapter = &manifest["adapter"];
-    let (backend, driver) = (
-        adapter["backend"].as_str().unwrap_or("none"),
-        adapter["driver"].as_str().unwrap_or("none"),
-    );
+    let manifest = manifest(out);
+    let (backend, driver) = manifest.adapter.as_ref().map_or(("none", "none"), |a| {
+        (a.backend.as_str(), a.driver.as_str())
+    });
     match golden
         .iter()
         .find(|(b, d, _)| *b == backend && *d == driver)
@@ -129,6 +128,20 @@ fn verify(
             false
         }
     }
+}
+
+/// A run's manifest, after checking that the typed `Manifest` holds every field of its
+/// manifest.json: read into the struct and back, the same document.
+fn manifest(dir: &Path) -> Manifest {
+    let doc: Value =
+        serde_json::from_slice(&std::fs::read(dir.join("manifest.json")).unwrap()).unwrap();
+    let typed = Manifest::read(dir).unwrap();
+    assert_eq!(
+        serde_json::to_value(&typed).unwrap(),
+        doc,
+        "manifest.json and the typed Manifest differ"
+    );
+    typed
 }
 
 /// A run's metrics, after checking that the typed `Metrics` holds every field of its
@@ -531,11 +544,10 @@ fn lab_outputs(out: &Path) {
     let k = CameraGeometry::from_hfov(120, 88, 80.0);
     let mount = hetsim_msgs::pose_from_xyz_rpy([0.05, 0.0, 0.08], [0.0; 3]);
     // On the backend the run rendered on (the test process's own may be another).
-    let manifest: Value =
-        serde_json::from_slice(&std::fs::read(out.join("manifest.json")).unwrap()).unwrap();
-    let backend = manifest["adapter"]["backend"]
-        .as_str()
-        .unwrap()
+    let backend = manifest(out)
+        .adapter
+        .expect("the lab renders")
+        .backend
         .to_lowercase();
     let options = RenderOptions {
         backend: Some(backend),

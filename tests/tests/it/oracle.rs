@@ -2,14 +2,10 @@
 //! team (the parent, which localizes from its laser, and the children) does not depend on it:
 //! with every truth message withheld from them they compute the same bytes.
 
+use hetsim_eval::manifest::Manifest;
 use hetsim_eval::Metrics;
 use hetsim_tests::{hetsim, printed_digest, repo};
-use serde_json::Value;
 use std::path::Path;
-
-fn json(path: &Path) -> Value {
-    serde_json::from_slice(&std::fs::read(path).unwrap()).unwrap()
-}
 
 /// Runs the lab mission's first two minutes, with every robot's oracle switched on or left as
 /// the robot files declare it (off); returns the results folder and the digest.
@@ -57,17 +53,15 @@ fn the_coverage_team_computes_the_same_bytes_without_truth() {
     let (without, d_without) = lab(dir.path(), false);
     let (with, d_with) = lab(dir.path(), true);
     let (m_without, m_with) = (
-        json(&without.join("manifest.json")),
-        json(&with.join("manifest.json")),
+        Manifest::read(&without).unwrap(),
+        Manifest::read(&with).unwrap(),
     );
     // The manifest lists every oracle that is on: none as the robot files declare them.
-    let oracle_robots = |m: &Value| -> Vec<String> {
-        m["oracles"]
-            .as_array()
-            .unwrap()
+    let oracle_robots = |m: &Manifest| -> Vec<String> {
+        m.oracles
             .iter()
-            .filter(|o| o["kind"] == "oracle_pose")
-            .map(|o| o["robot"].as_str().unwrap().to_string())
+            .filter(|o| o.kind == "oracle_pose")
+            .map(|o| o.robot.clone())
             .collect()
     };
     assert!(oracle_robots(&m_without).is_empty());
@@ -90,9 +84,8 @@ fn the_coverage_team_computes_the_same_bytes_without_truth() {
     }
     assert_ne!(d_without, d_with, "the delivered truth is in the digest");
     // What every stack computed (commands and radio messages) is the same bytes.
-    let stacks = |m: &Value| m["stacks"].as_array().unwrap().clone();
-    assert_eq!(stacks(&m_without).len(), 4);
-    assert_eq!(stacks(&m_without), stacks(&m_with));
+    assert_eq!(m_without.stacks.len(), 4);
+    assert_eq!(m_without.stacks, m_with.stacks);
     // And the mission got somewhere in those two minutes: images were taken.
     let imaged = Metrics::read(&without)
         .unwrap()
