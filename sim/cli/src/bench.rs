@@ -305,9 +305,48 @@ const VISION_ROUNDS: usize = 7;
 /// start: the median over [`VISION_ROUNDS`] rounds of the sequence, with the least and
 /// greatest round.
 pub fn vision(scenario: &Path) -> Result<Figures> {
-    use hetsim_vision::{harris, segments, stereo, vo::StereoVo, Gray};
+    use hetsim_vision::{segments, stereo};
     let loaded = load_scenario(scenario, &LoadOptions::default())?;
-    let (robot, stereo) = loaded
+    let (robot, stereo) = first_stereo_robot(&loaded, scenario)?;
+    let (k, baseline, mount) = (stereo.intrinsics, stereo.baseline_m, stereo.body_from_mount);
+    let mut renderer = Renderer::new(&loaded.world, &RenderOptions::default())?;
+    let bench = stereo::Bench {
+        camera: k.k,
+        baseline_m: baseline,
+    };
+    let frames = vision_frames(&mut renderer, &loaded, robot, k, baseline, mount);
+    // Segment detection as the SLAM stack runs it: at its scale, every `line_detect_period`
+    // frames.
+    let slam = hetsim_slam::stack::SlamParams::ground();
+    let at_slam_scale = segments::DetectParams {
+        scale: slam.line_detect_scale,
+        ..Default::default()
+    };
+    // One round is the whole sequence from a fresh VO; the figure of a stage is its median
+    // over the rounds (this machine is shared, and one round of 11 frames moved by 30 %
+    // between back-to-back runs), with the rounds' least and greatest beside it.
+    let mut rounds: Vec<[f64; 8]> = Vec::new();
+    let mut n_segments = 0usize;
+    for _ in 0..VISION_ROUNDS {
+        let (round, found) = vision_round(&frames, bench, &slam, &at_slam_scale);
+        rounds.push(round);
+        n_segments = found;
+    }
+    Ok(vision_figures(
+        k,
+        &loaded.robots[robot].spec.name,
+        frames.len(),
+        &rounds,
+        n_segments,
+    ))
+}
+
+/// The first robot of `loaded` with a stereo bench (its index), and the bench.
+fn first_stereo_robot(
+    loaded: &Scenario,
+    scenario: &Path,
+) -> Result<(usize, hetsim_scene::StereoBench)> {
+    loaded
         .robots
         .iter()
         .enumerate()
@@ -317,13 +356,20 @@ pub fn vision(scenario: &Path) -> Result<Figures> {
                 "{}: no robot with a stereo_camera to measure",
                 scenario.display()
             )
-        })?;
-    let (k, baseline, mount) = (stereo.intrinsics, stereo.baseline_m, stereo.body_from_mount);
-    let mut renderer = Renderer::new(&loaded.world, &RenderOptions::default())?;
-    let bench = stereo::Bench {
-        camera: k.k,
-        baseline_m: baseline,
-    };
+        })
+}
+
+/// The vision bench's sequence: 11 stereo pairs, grey, of robot `robot` driving 6 cm per
+/// frame straight ahead from its start.
+fn vision_frames(
+    renderer: &mut Renderer,
+    loaded: &Scenario,
+    robot: usize,
+    k: CameraGeometry,
+    baseline: f64,
+    mount: hetsim_msgs::Pose,
+) -> Vec<(hetsim_vision::Gray, hetsim_vision::Gray)> {
+    use hetsim_vision::Gray;
     let (w, h) = (k.width as usize, k.height as usize);
     let d = &loaded.robots[robot].spec.start;
     let pair = |renderer: &mut Renderer, forward: f64| {
@@ -343,68 +389,68 @@ pub fn vision(scenario: &Path) -> Result<Figures> {
             Gray::from_rgb(w, h, &f[1].rgb()).expect("a rendered frame is w x h x 3"),
         )
     };
-    let frames: Vec<(Gray, Gray)> = (0..11)
-        .map(|i| pair(&mut renderer, 0.06 * i as f64))
-        .collect();
-    // Segment detection as the SLAM stack runs it: at its scale, every `line_detect_period`
-    // frames.
-    let slam = hetsim_slam::stack::SlamParams::ground();
-    let at_slam_scale = segments::DetectParams {
-        scale: slam.line_detect_scale,
-        ..Default::default()
-    };
-    // One round is the whole sequence from a fresh VO; the figure of a stage is its median
-    // over the rounds (this machine is shared, and one round of 11 frames moved by 30 %
-    // between back-to-back runs), with the rounds' least and greatest beside it.
+    (0..11)
+        .map(|i| pair(&mut *renderer, 0.06 * i as f64))
+        .collect()
+}
+
+/// One round of the vision bench: the whole sequence from a fresh VO, each stage's
+/// milliseconds per stereo frame (in the order of [`vision_figures`]' stages), and the
+/// segments detected.
+fn vision_round(
+    frames: &[(hetsim_vision::Gray, hetsim_vision::Gray)],
+    bench: hetsim_vision::stereo::Bench,
+    slam: &hetsim_slam::stack::SlamParams,
+    at_slam_scale: &hetsim_vision::segments::DetectParams,
+) -> ([f64; 8], usize) {
+    use hetsim_vision::{harris, segments, stereo, vo::StereoVo};
     let n = frames.len() as f64;
-    let mut rounds: Vec<[f64; 8]> = Vec::new();
+    let (mut t_detect, mut t_stereo, mut t_vo, mut t_vo_lost) = (0.0, 0.0, 0.0, 0.0);
+    let (mut t_lsd, mut t_lsd_slam, mut t_track) = (0.0, 0.0, 0.0);
+    let mut previous: Vec<segments::Segment> = Vec::new();
+    let mut vo = StereoVo::new(bench);
+    let mut rng = <rand_chacha::ChaCha8Rng as rand::SeedableRng>::seed_from_u64(0);
     let mut n_segments = 0usize;
-    for _ in 0..VISION_ROUNDS {
-        let (mut t_detect, mut t_stereo, mut t_vo, mut t_vo_lost) = (0.0, 0.0, 0.0, 0.0);
-        let (mut t_lsd, mut t_lsd_slam, mut t_track) = (0.0, 0.0, 0.0);
-        let mut previous: Vec<segments::Segment> = Vec::new();
-        let mut vo = StereoVo::new(bench);
-        let mut rng = <rand_chacha::ChaCha8Rng as rand::SeedableRng>::seed_from_u64(0);
-        n_segments = 0;
-        for (i, (l, r)) in frames.iter().enumerate() {
-            let start = wall_clock();
-            let corners = harris::detect(l, 0.005, 8);
-            let chosen = harris::select_new(&corners, l.width, l.height, &[], 25, 8.0);
-            t_detect += start.elapsed().as_secs_f64();
-            let start = wall_clock();
-            std::hint::black_box(stereo::match_stereo(
-                l,
-                r,
-                &bench,
-                &chosen,
-                [0.5, 120.0],
-                0.85,
-            ));
-            t_stereo += start.elapsed().as_secs_f64();
-            let start = wall_clock();
-            std::hint::black_box(vo.process(l, r, &mut rng));
-            // The first pair only initializes; the second searches five times wider (no
-            // velocity yet, as after a loss); the rest are steady-state tracking.
-            match i {
-                0 => {}
-                1 => t_vo_lost = start.elapsed().as_secs_f64(),
-                _ => t_vo += start.elapsed().as_secs_f64(),
-            }
-            let start = wall_clock();
-            let found = segments::detect(l, &segments::DetectParams::default());
-            t_lsd += start.elapsed().as_secs_f64();
-            n_segments += found.len();
-            let start = wall_clock();
-            std::hint::black_box(segments::detect(l, &at_slam_scale));
-            t_lsd_slam += start.elapsed().as_secs_f64();
-            let start = wall_clock();
-            for s in &previous {
-                std::hint::black_box(segments::track(l, s, &segments::TrackParams::default()));
-            }
-            t_track += start.elapsed().as_secs_f64();
-            previous = found;
+    for (i, (l, r)) in frames.iter().enumerate() {
+        let start = wall_clock();
+        let corners = harris::detect(l, 0.005, 8);
+        let chosen = harris::select_new(&corners, l.width, l.height, &[], 25, 8.0);
+        t_detect += start.elapsed().as_secs_f64();
+        let start = wall_clock();
+        std::hint::black_box(stereo::match_stereo(
+            l,
+            r,
+            &bench,
+            &chosen,
+            [0.5, 120.0],
+            0.85,
+        ));
+        t_stereo += start.elapsed().as_secs_f64();
+        let start = wall_clock();
+        std::hint::black_box(vo.process(l, r, &mut rng));
+        // The first pair only initializes; the second searches five times wider (no
+        // velocity yet, as after a loss); the rest are steady-state tracking.
+        match i {
+            0 => {}
+            1 => t_vo_lost = start.elapsed().as_secs_f64(),
+            _ => t_vo += start.elapsed().as_secs_f64(),
         }
-        rounds.push([
+        let start = wall_clock();
+        let found = segments::detect(l, &segments::DetectParams::default());
+        t_lsd += start.elapsed().as_secs_f64();
+        n_segments += found.len();
+        let start = wall_clock();
+        std::hint::black_box(segments::detect(l, at_slam_scale));
+        t_lsd_slam += start.elapsed().as_secs_f64();
+        let start = wall_clock();
+        for s in &previous {
+            std::hint::black_box(segments::track(l, s, &segments::TrackParams::default()));
+        }
+        t_track += start.elapsed().as_secs_f64();
+        previous = found;
+    }
+    (
+        [
             1e3 * t_detect / n,
             1e3 * t_stereo / n,
             1e3 * t_vo / (n - 2.0),
@@ -413,8 +459,21 @@ pub fn vision(scenario: &Path) -> Result<Figures> {
             1e3 * t_lsd_slam / n,
             1e3 * t_lsd_slam / n / slam.line_detect_period as f64,
             1e3 * t_track / (n - 1.0),
-        ]);
-    }
+        ],
+        n_segments,
+    )
+}
+
+/// The vision bench's figures: each stage's median over the `rounds`, with the least and
+/// greatest round and its target, and what was measured (frame size, robot `robot`,
+/// `frames` frames a round, segments found per frame in the last round).
+fn vision_figures(
+    k: CameraGeometry,
+    robot: &str,
+    frames: usize,
+    rounds: &[[f64; 8]],
+    n_segments: usize,
+) -> Figures {
     let mut f = Figures::new(
         "vision",
         &[
@@ -429,9 +488,8 @@ pub fn vision(scenario: &Path) -> Result<Figures> {
         "frame".into(),
         json!(format!("{} x {} stereo", k.width, k.height)),
     );
-    f.about
-        .insert("robot".into(), json!(loaded.robots[robot].spec.name));
-    f.about.insert("frames".into(), json!(frames.len()));
+    f.about.insert("robot".into(), json!(robot));
+    f.about.insert("frames".into(), json!(frames));
     f.about.insert("rounds".into(), json!(VISION_ROUNDS));
     let stages: [(&str, Option<f64>); 8] = [
         ("harris_selection", None),
@@ -456,9 +514,9 @@ pub fn vision(scenario: &Path) -> Result<Figures> {
     }
     f.about.insert(
         "segments_per_frame".into(),
-        json!(n_segments as f64 / frames.len() as f64),
+        json!(n_segments as f64 / frames as f64),
     );
-    Ok(f)
+    f
 }
 
 /// The local EKF's time per frame against the number of landmarks (synthetic, a fifth of

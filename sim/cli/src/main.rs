@@ -14,7 +14,7 @@ mod study;
 use anyhow::Result;
 use clap::{Parser, Subcommand};
 use hetsim_scene::{load_robot_model, load_scenario, LoadOptions};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 /// Deterministic multi-robot simulator for cooperative visual mapping.
@@ -278,23 +278,12 @@ fn real_main() -> Result<()> {
                     duration_secs: duration,
                 },
             )?;
-            let render = (!no_render).then_some(hetsim_render::RenderOptions {
-                backend,
-                adapter,
-                anisotropy: None,
-            });
+            let render = (!no_render).then_some(render_options(backend, adapter));
             exec::execute(
                 &loaded,
                 &exec::Job {
                     out: out.as_deref(),
-                    record: record.as_deref().map(|p| {
-                        let encoding = if record_encoding == "json" {
-                            hetsim_io::RecordEncoding::Json
-                        } else {
-                            hetsim_io::RecordEncoding::Ros2
-                        };
-                        (p, encoding)
-                    }),
+                    record: recording(record.as_deref(), &record_encoding),
                     render,
                     dump: dump_frames.then_some((None, None)),
                     open_loop,
@@ -318,11 +307,7 @@ fn real_main() -> Result<()> {
             cameras,
             seed,
             out,
-            hetsim_render::RenderOptions {
-                backend,
-                adapter,
-                anisotropy: None,
-            },
+            render_options(backend, adapter),
         )?,
         Cmd::Localize {
             scenario,
@@ -330,16 +315,7 @@ fn real_main() -> Result<()> {
             out,
             backend,
             adapter,
-        } => study::localize(
-            &scenario,
-            seeds,
-            out,
-            hetsim_render::RenderOptions {
-                backend,
-                adapter,
-                anisotropy: None,
-            },
-        )?,
+        } => study::localize(&scenario, seeds, out, render_options(backend, adapter))?,
         Cmd::Replay {
             source,
             robots,
@@ -349,9 +325,8 @@ fn real_main() -> Result<()> {
             duration,
             memory_trace,
             withhold_truth,
-        } => {
-            let trace = exec::MemoryTrace::default();
-            let files = replay::replay(&replay::ReplayArgs {
+        } => replay_recording(
+            replay::ReplayArgs {
                 source,
                 robots,
                 out,
@@ -359,29 +334,12 @@ fn real_main() -> Result<()> {
                 scenario,
                 duration,
                 quiet: false,
-                memory: memory_trace.is_some().then_some(&trace),
+                memory: None,
                 withhold_truth,
-            })?;
-            if let Some(path) = memory_trace {
-                exec::write_memory_trace(&path, &trace.into_inner().expect("memory trace lock"))?;
-            }
-            println!("results: {}", files.dir.display());
-            println!("digest: {}", files.digest);
-        }
-        Cmd::Validate { files } => {
-            anyhow::ensure!(
-                !files.is_empty(),
-                "name at least one scenario or robot file"
-            );
-            for f in &files {
-                if is_robot_file(f) {
-                    load_robot_model(f, 1e-3)?;
-                } else {
-                    load_scenario(f, &LoadOptions::default())?;
-                }
-                println!("ok: {}", f.display());
-            }
-        }
+            },
+            memory_trace,
+        )?,
+        Cmd::Validate { files } => validate(&files)?,
         Cmd::Report {
             what,
             run,
@@ -419,6 +377,66 @@ fn real_main() -> Result<()> {
             };
             figures.print(json);
         }
+    }
+    Ok(())
+}
+
+/// The renderer options `--backend` and `--adapter` choose.
+fn render_options(
+    backend: Option<String>,
+    adapter: Option<String>,
+) -> hetsim_render::RenderOptions {
+    hetsim_render::RenderOptions {
+        backend,
+        adapter,
+        anisotropy: None,
+    }
+}
+
+/// The recording `--record` and `--record-encoding` ask for, if any.
+fn recording<'a>(
+    record: Option<&'a Path>,
+    record_encoding: &str,
+) -> Option<(&'a Path, hetsim_io::RecordEncoding)> {
+    record.map(|p| {
+        let encoding = if record_encoding == "json" {
+            hetsim_io::RecordEncoding::Json
+        } else {
+            hetsim_io::RecordEncoding::Ros2
+        };
+        (p, encoding)
+    })
+}
+
+/// `hetsim replay`: replays `args` (its memory trace kept when `memory_trace` names a file,
+/// then written there) and prints `results:` and `digest:`.
+fn replay_recording(args: replay::ReplayArgs<'_>, memory_trace: Option<PathBuf>) -> Result<()> {
+    let trace = exec::MemoryTrace::default();
+    let files = replay::replay(&replay::ReplayArgs {
+        memory: memory_trace.is_some().then_some(&trace),
+        ..args
+    })?;
+    if let Some(path) = memory_trace {
+        exec::write_memory_trace(&path, &trace.into_inner().expect("memory trace lock"))?;
+    }
+    println!("results: {}", files.dir.display());
+    println!("digest: {}", files.digest);
+    Ok(())
+}
+
+/// `hetsim validate`: loads each scenario or robot file, printing `ok:` for each.
+fn validate(files: &[PathBuf]) -> Result<()> {
+    anyhow::ensure!(
+        !files.is_empty(),
+        "name at least one scenario or robot file"
+    );
+    for f in files {
+        if is_robot_file(f) {
+            load_robot_model(f, 1e-3)?;
+        } else {
+            load_scenario(f, &LoadOptions::default())?;
+        }
+        println!("ok: {}", f.display());
     }
     Ok(())
 }

@@ -119,136 +119,7 @@ impl Cameras {
         options: &RenderOptions,
     ) -> Result<Option<Self>, RenderError> {
         let clock: SimClock = scenario.clock;
-        let mut rigs = Vec::new();
-        for (i, r) in scenario.robots.iter().enumerate() {
-            for s in &r.model.sensors {
-                let m = s.mount();
-                let mount = pose_from_xyz_rpy(m.xyz_m, m.rpy_deg.map(f64::to_radians));
-                let base = format!("{}/{}", r.spec.name, s.name());
-                let period = clock.period_ticks(s.rate_hz()).expect("validated rate");
-                match s {
-                    Sensor::Camera {
-                        width_px,
-                        height_px,
-                        hfov_deg,
-                        intrinsics,
-                        pixel_noise_sigma,
-                        distortion,
-                        gain,
-                        encoding,
-                        ..
-                    } => rigs.push(Rig {
-                        encoding: *encoding,
-                        robot: i,
-                        rng: streams.stream(&format!("{base}/pixel_noise")),
-                        topic: base,
-                        sensor: s.name().to_string(),
-                        period,
-                        intrinsics: hetsim_scene::camera_geometry(
-                            *width_px,
-                            *height_px,
-                            *hfov_deg,
-                            intrinsics.as_ref(),
-                        ),
-                        body_from_mount: mount,
-                        noise: pixel_noise(*pixel_noise_sigma),
-                        gain: *gain as f32,
-                        model: pinhole(
-                            hetsim_scene::camera_geometry(
-                                *width_px,
-                                *height_px,
-                                *hfov_deg,
-                                intrinsics.as_ref(),
-                            ),
-                            *distortion,
-                        ),
-                    }),
-                    Sensor::StereoCamera {
-                        width_px,
-                        height_px,
-                        hfov_deg,
-                        intrinsics,
-                        baseline_m,
-                        pixel_noise_sigma,
-                        distortion,
-                        gain,
-                        encoding,
-                        ..
-                    } => {
-                        for (eye, offset) in [("left", 0.0), ("right", -baseline_m)] {
-                            rigs.push(Rig {
-                                encoding: *encoding,
-                                robot: i,
-                                rng: streams.stream(&format!("{base}/{eye}/pixel_noise")),
-                                topic: format!("{base}/{eye}"),
-                                sensor: format!("{}/{eye}", s.name()),
-                                period,
-                                intrinsics: hetsim_scene::camera_geometry(
-                                    *width_px,
-                                    *height_px,
-                                    *hfov_deg,
-                                    intrinsics.as_ref(),
-                                ),
-                                body_from_mount: mount
-                                    * pose_from_xyz_rpy([0.0, offset, 0.0], [0.0; 3]),
-                                noise: pixel_noise(*pixel_noise_sigma),
-                                gain: *gain as f32,
-                                model: pinhole(
-                                    hetsim_scene::camera_geometry(
-                                        *width_px,
-                                        *height_px,
-                                        *hfov_deg,
-                                        intrinsics.as_ref(),
-                                    ),
-                                    *distortion,
-                                ),
-                            });
-                        }
-                    }
-                    Sensor::OmniCamera {
-                        width_px,
-                        height_px,
-                        elevation_deg,
-                        ..
-                    } => {
-                        let face_px = (width_px / 4).max(16);
-                        rigs.push(Rig {
-                            encoding: PixelEncoding::Rgb8,
-                            robot: i,
-                            rng: streams.stream(&format!("{base}/pixel_noise")),
-                            topic: base,
-                            sensor: s.name().to_string(),
-                            period,
-                            intrinsics: CameraGeometry {
-                                width: *width_px,
-                                height: *height_px,
-                                k: hetsim_msgs::Pinhole {
-                                    alpha_u: 0.0,
-                                    alpha_v: 0.0,
-                                    u0: 0.0,
-                                    v0: 0.0,
-                                },
-                            },
-                            body_from_mount: mount,
-                            noise: None,
-                            gain: 1.0,
-                            model: {
-                                let face = CameraGeometry::from_hfov(face_px, face_px, 90.0);
-                                let lookup = panorama_lookup(
-                                    &face,
-                                    *width_px,
-                                    *height_px,
-                                    elevation_deg.map(f64::to_radians),
-                                );
-                                let (taps, faces) = panorama_taps(&face, &lookup);
-                                Model::Omni { face, taps, faces }
-                            },
-                        });
-                    }
-                    _ => {}
-                }
-            }
-        }
+        let rigs = rigs(scenario, streams);
         if rigs.is_empty() {
             return Ok(None);
         }
@@ -375,6 +246,190 @@ impl Cameras {
                 rig.shot(frames, world_from_mount, stamp_ns, dt_ns)
             })
             .collect()
+    }
+}
+
+/// Every camera of the scenario as a rig, in robot then sensor order (a stereo bench: its
+/// left camera, then its right).
+fn rigs(scenario: &Scenario, streams: &Streams) -> Vec<Rig> {
+    let clock: SimClock = scenario.clock;
+    let mut rigs = Vec::new();
+    for (i, r) in scenario.robots.iter().enumerate() {
+        for s in &r.model.sensors {
+            let m = s.mount();
+            let mount = pose_from_xyz_rpy(m.xyz_m, m.rpy_deg.map(f64::to_radians));
+            let base = format!("{}/{}", r.spec.name, s.name());
+            let period = clock.period_ticks(s.rate_hz()).expect("validated rate");
+            match s {
+                Sensor::Camera { .. } => rigs.push(camera_rig(i, base, s, period, mount, streams)),
+                Sensor::StereoCamera { .. } => {
+                    rigs.extend(stereo_rigs(i, &base, s, period, mount, streams));
+                }
+                Sensor::OmniCamera { .. } => {
+                    rigs.push(omni_rig(i, base, s, period, mount, streams))
+                }
+                _ => {}
+            }
+        }
+    }
+    rigs
+}
+
+/// The rig of pinhole camera `s` of robot `robot` (`base`: its topic, `mount`:
+/// `body_from_mount`).
+fn camera_rig(
+    robot: usize,
+    base: String,
+    s: &Sensor,
+    period: u64,
+    mount: Pose,
+    streams: &Streams,
+) -> Rig {
+    let Sensor::Camera {
+        width_px,
+        height_px,
+        hfov_deg,
+        intrinsics,
+        pixel_noise_sigma,
+        distortion,
+        gain,
+        encoding,
+        ..
+    } = s
+    else {
+        unreachable!("a camera rig is made of a camera");
+    };
+    Rig {
+        encoding: *encoding,
+        robot,
+        rng: streams.stream(&format!("{base}/pixel_noise")),
+        topic: base,
+        sensor: s.name().to_string(),
+        period,
+        intrinsics: hetsim_scene::camera_geometry(
+            *width_px,
+            *height_px,
+            *hfov_deg,
+            intrinsics.as_ref(),
+        ),
+        body_from_mount: mount,
+        noise: pixel_noise(*pixel_noise_sigma),
+        gain: *gain as f32,
+        model: pinhole(
+            hetsim_scene::camera_geometry(*width_px, *height_px, *hfov_deg, intrinsics.as_ref()),
+            *distortion,
+        ),
+    }
+}
+
+/// The rigs of stereo bench `s` of robot `robot`, left then right (`base`: the bench's
+/// topic, `mount`: the left camera's `body_from_mount`).
+fn stereo_rigs(
+    robot: usize,
+    base: &str,
+    s: &Sensor,
+    period: u64,
+    mount: Pose,
+    streams: &Streams,
+) -> Vec<Rig> {
+    let Sensor::StereoCamera {
+        width_px,
+        height_px,
+        hfov_deg,
+        intrinsics,
+        baseline_m,
+        pixel_noise_sigma,
+        distortion,
+        gain,
+        encoding,
+        ..
+    } = s
+    else {
+        unreachable!("stereo rigs are made of a stereo camera");
+    };
+    let mut rigs = Vec::new();
+    for (eye, offset) in [("left", 0.0), ("right", -baseline_m)] {
+        rigs.push(Rig {
+            encoding: *encoding,
+            robot,
+            rng: streams.stream(&format!("{base}/{eye}/pixel_noise")),
+            topic: format!("{base}/{eye}"),
+            sensor: format!("{}/{eye}", s.name()),
+            period,
+            intrinsics: hetsim_scene::camera_geometry(
+                *width_px,
+                *height_px,
+                *hfov_deg,
+                intrinsics.as_ref(),
+            ),
+            body_from_mount: mount * pose_from_xyz_rpy([0.0, offset, 0.0], [0.0; 3]),
+            noise: pixel_noise(*pixel_noise_sigma),
+            gain: *gain as f32,
+            model: pinhole(
+                hetsim_scene::camera_geometry(
+                    *width_px,
+                    *height_px,
+                    *hfov_deg,
+                    intrinsics.as_ref(),
+                ),
+                *distortion,
+            ),
+        });
+    }
+    rigs
+}
+
+/// The rig of omnidirectional camera `s` of robot `robot`: a panorama resampled from six
+/// pinhole faces, noiseless at unit gain (`base`: its topic, `mount`: `body_from_mount`).
+fn omni_rig(
+    robot: usize,
+    base: String,
+    s: &Sensor,
+    period: u64,
+    mount: Pose,
+    streams: &Streams,
+) -> Rig {
+    let Sensor::OmniCamera {
+        width_px,
+        height_px,
+        elevation_deg,
+        ..
+    } = s
+    else {
+        unreachable!("an omni rig is made of an omnidirectional camera");
+    };
+    let face_px = (width_px / 4).max(16);
+    Rig {
+        encoding: PixelEncoding::Rgb8,
+        robot,
+        rng: streams.stream(&format!("{base}/pixel_noise")),
+        topic: base,
+        sensor: s.name().to_string(),
+        period,
+        intrinsics: CameraGeometry {
+            width: *width_px,
+            height: *height_px,
+            k: hetsim_msgs::Pinhole {
+                alpha_u: 0.0,
+                alpha_v: 0.0,
+                u0: 0.0,
+                v0: 0.0,
+            },
+        },
+        body_from_mount: mount,
+        noise: None,
+        gain: 1.0,
+        model: {
+            let face = CameraGeometry::from_hfov(face_px, face_px, 90.0);
+            let lookup = panorama_lookup(
+                &face,
+                *width_px,
+                *height_px,
+                elevation_deg.map(f64::to_radians),
+            );
+            let (taps, faces) = panorama_taps(&face, &lookup);
+            Model::Omni { face, taps, faces }
+        },
     }
 }
 

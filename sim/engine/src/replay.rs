@@ -207,7 +207,7 @@ pub fn replay(
 /// the estimators compute must not change, for they read no truth.
 pub fn replay_withholding_truth(
     scenario: &Scenario,
-    mut stacks: Stacks,
+    stacks: Stacks,
     recording: &mut dyn Recording,
     withhold_truth: bool,
     mut progress: impl FnMut(u64, u64) + Send,
@@ -220,43 +220,14 @@ pub fn replay_withholding_truth(
         )));
     }
     let clock = scenario.clock;
-    let names: Vec<String> = scenario
-        .robots
-        .iter()
-        .map(|r| r.spec.name.clone())
-        .collect();
-    let active: Vec<bool> = stacks.iter().map(Option::is_some).collect();
-    let mut comms = Comms::new(
-        scenario.file.comms.clone(),
-        clock,
-        names.clone(),
-        Streams::new(scenario.seed),
-    );
-    let topics = StackTopics::of(&names);
-    let mut stack_digests: Vec<RunDigest> = (0..n).map(|_| RunDigest::new()).collect();
-    let truth_period = clock
-        .period_ticks(scenario.file.truth_rate_hz)
-        .expect("validated truth rate");
-    let next = recording.next_logged()?;
-    let mut feed = Feed {
+    let mut replayed = Replayed::new(scenario, stacks);
+    let mut feed = Feed::start(
         scenario,
         recording,
-        next,
-        oracles: if withhold_truth {
-            vec![None; n]
-        } else {
-            oracles(scenario)
-        },
-        lasers: laser_angles(scenario),
-        truth_period,
-        active: active.clone(),
-        post: Post::new(names.clone(), None),
-        truth: truth_buffers(n, clock.ticks_in(scenario.duration_secs) / truth_period + 2),
-        position: vec![[0.0; 3]; n],
-        last_pose: vec![None; n],
-        radio: Vec::new(),
-        recorded_cmd: vec![None; n],
-    };
+        withhold_truth,
+        &replayed.active,
+        &replayed.names,
+    )?;
     // No further than the recorded run went (a mission that ended early ended it).
     let total = clock
         .ticks_in(scenario.duration_secs)
@@ -274,47 +245,9 @@ pub fn replay_withholding_truth(
         feed.drain(tick)?;
         ticks = tick + 1;
         // 2. The stacks, in parallel; the first refusal in robot order stops the replay.
-        let results = step_stacks(&mut stacks, &mut feed.post.inboxes, now);
-        let mut over = false;
-        for (i, result) in results.into_iter().enumerate() {
-            let Some(result) = result else {
-                continue;
-            };
-            let cmd = result.map_err(|error| ReplayError::Input {
-                robot: names[i].clone(),
-                error: Box::new(error),
-            })?;
-            let recorded = feed.recorded_cmd[i].take();
-            if checked && recorded.as_ref() != Some(&cmd) {
-                return Err(ReplayError::Diverged {
-                    robot: names[i].clone(),
-                    stamp_ns: now,
-                    recorded: recorded.map_or("no command".into(), |r| format!("{r:?}")),
-                    replayed: format!("{cmd:?}"),
-                });
-            }
-            let stack = stacks[i]
-                .as_deref_mut()
-                .expect("an active robot has a stack");
-            // The status right after the step, before the outbox is read, as the live run.
-            over |= stack.status().mission_over;
-            publish(
-                stack,
-                i,
-                tick,
-                &cmd,
-                &topics,
-                (&mut feed.post.digest, &mut stack_digests[i]),
-                &mut comms,
-                &feed.position,
-            );
-        }
+        let over = replayed.step_stacks(&mut feed, tick, now, checked)?;
         // 3. Radio deliveries at the end of this tick, fed at the next.
-        for (to, delivered) in comms.deliver(tick + 1) {
-            if active[to] {
-                feed.radio.push((to, SensorMsg::Comms(delivered)));
-            }
-        }
+        replayed.deliver_radio(&mut feed.radio, tick);
         ending.after(tick, over);
         if tick % report_every == 0 {
             progress(tick, total);
@@ -331,31 +264,11 @@ pub fn replay_withholding_truth(
         ..
     } = feed;
     let outcome = recording.outcome();
-    let robots = scenario
-        .robots
-        .iter()
-        .enumerate()
-        .map(|(i, r)| {
-            let measured = outcome.and_then(|o| o.iter().find(|m| m.name == r.spec.name));
-            RobotOutcome {
-                name: r.spec.name.clone(),
-                model: r.spec.model.clone(),
-                distance_m: measured.map_or(0.0, |m| m.distance_m),
-                collisions: measured.map_or(0, |m| m.collisions),
-                status: stages::status_of(&stacks[i]),
-                final_position_m: last_pose[i].map_or([0.0; 3], |p| p.translation.vector.into()),
-                stack_digest: if active[i] {
-                    stack_digests[i].hex()
-                } else {
-                    String::new()
-                },
-            }
-        })
-        .collect();
+    let robots = replayed.outcomes(scenario, outcome, &last_pose);
     Ok(stages::output(
         clock,
-        &stacks,
-        &comms,
+        &replayed.stacks,
+        &replayed.comms,
         Kept {
             ticks,
             post,
@@ -364,6 +277,142 @@ pub fn replay_withholding_truth(
             adapter: None,
         },
     ))
+}
+
+/// The replayed robots' side of a replay: their stacks (`None`: not replayed), what the
+/// stacks send (topics, per-stack digests) and the radio that carries it.
+struct Replayed {
+    names: Vec<String>,
+    /// Which robots have a stack.
+    active: Vec<bool>,
+    stacks: Stacks,
+    comms: Comms,
+    topics: StackTopics,
+    /// What each stack computed (its commands and radio messages), digested per robot.
+    stack_digests: Vec<RunDigest>,
+}
+
+impl Replayed {
+    /// The robots of `scenario` with their `stacks`, each stack's digest empty, and the radio
+    /// (the scenario's comms settings, on its seeded streams).
+    fn new(scenario: &Scenario, stacks: Stacks) -> Self {
+        let n = scenario.robots.len();
+        let clock = scenario.clock;
+        let names: Vec<String> = scenario
+            .robots
+            .iter()
+            .map(|r| r.spec.name.clone())
+            .collect();
+        let active: Vec<bool> = stacks.iter().map(Option::is_some).collect();
+        let comms = Comms::new(
+            scenario.file.comms.clone(),
+            clock,
+            names.clone(),
+            Streams::new(scenario.seed),
+        );
+        let topics = StackTopics::of(&names);
+        let stack_digests: Vec<RunDigest> = (0..n).map(|_| RunDigest::new()).collect();
+        Self {
+            names,
+            active,
+            stacks,
+            comms,
+            topics,
+            stack_digests,
+        }
+    }
+
+    /// Stage "step the stacks": every stack steps on its inbox (in parallel); each command,
+    /// compared with the recorded one when `checked`, is published as the live run publishes
+    /// it. Returns whether a stack said its mission is over; the first refusal in robot
+    /// order, or the first command unlike the recorded one, stops the replay.
+    fn step_stacks(
+        &mut self,
+        feed: &mut Feed<'_>,
+        tick: u64,
+        now: u64,
+        checked: bool,
+    ) -> Result<bool, ReplayError> {
+        let results = step_stacks(&mut self.stacks, &mut feed.post.inboxes, now);
+        let mut over = false;
+        for (i, result) in results.into_iter().enumerate() {
+            let Some(result) = result else {
+                continue;
+            };
+            let cmd = result.map_err(|error| ReplayError::Input {
+                robot: self.names[i].clone(),
+                error: Box::new(error),
+            })?;
+            let recorded = feed.recorded_cmd[i].take();
+            if checked && recorded.as_ref() != Some(&cmd) {
+                return Err(ReplayError::Diverged {
+                    robot: self.names[i].clone(),
+                    stamp_ns: now,
+                    recorded: recorded.map_or("no command".into(), |r| format!("{r:?}")),
+                    replayed: format!("{cmd:?}"),
+                });
+            }
+            let stack = self.stacks[i]
+                .as_deref_mut()
+                .expect("an active robot has a stack");
+            // The status right after the step, before the outbox is read, as the live run.
+            over |= stack.status().mission_over;
+            publish(
+                stack,
+                i,
+                tick,
+                &cmd,
+                &self.topics,
+                (&mut feed.post.digest, &mut self.stack_digests[i]),
+                &mut self.comms,
+                &feed.position,
+            );
+        }
+        Ok(over)
+    }
+
+    /// Stage "deliver": the radio messages that arrive at the end of tick `tick` for a
+    /// replayed robot, into `radio` (fed at the next tick).
+    fn deliver_radio(&mut self, radio: &mut Vec<(usize, SensorMsg)>, tick: u64) {
+        for (to, delivered) in self.comms.deliver(tick + 1) {
+            if self.active[to] {
+                radio.push((to, SensorMsg::Comms(delivered)));
+            }
+        }
+    }
+
+    /// Each robot's outcome: what the recording says the physics measured (`outcome`), its
+    /// stack's last status, its last recorded position (`last_pose`) and its stack's digest
+    /// (empty for a robot not replayed).
+    fn outcomes(
+        &self,
+        scenario: &Scenario,
+        outcome: Option<&[RecordedOutcome]>,
+        last_pose: &[Option<Pose>],
+    ) -> Vec<RobotOutcome> {
+        scenario
+            .robots
+            .iter()
+            .enumerate()
+            .map(|(i, r)| {
+                let measured = outcome.and_then(|o| o.iter().find(|m| m.name == r.spec.name));
+                RobotOutcome {
+                    name: r.spec.name.clone(),
+                    model: r.spec.model.clone(),
+                    distance_m: measured.map_or(0.0, |m| m.distance_m),
+                    collisions: measured.map_or(0, |m| m.collisions),
+                    status: stages::status_of(&self.stacks[i]),
+                    final_position_m: last_pose[i]
+                        .map_or([0.0; 3], |p| p.translation.vector.into()),
+                    stack_digest: if self.active[i] {
+                        self.stack_digests[i].hex()
+                    } else {
+                        String::new()
+                    },
+                }
+            })
+            .collect()
+    }
 }
 
 /// The recording's events turned into the robots' inboxes, tick by tick.
@@ -389,7 +438,43 @@ struct Feed<'a> {
     recorded_cmd: Vec<Option<Command>>,
 }
 
-impl Feed<'_> {
+impl<'a> Feed<'a> {
+    /// The feed before the first tick: the recording's first event read ahead, the oracles
+    /// (none when `withhold_truth`), the lasers' exact angles, empty inboxes and buffers.
+    fn start(
+        scenario: &'a Scenario,
+        recording: &'a mut dyn Recording,
+        withhold_truth: bool,
+        active: &[bool],
+        names: &[String],
+    ) -> Result<Self, ReplayError> {
+        let n = scenario.robots.len();
+        let clock = scenario.clock;
+        let truth_period = clock
+            .period_ticks(scenario.file.truth_rate_hz)
+            .expect("validated truth rate");
+        let next = recording.next_logged()?;
+        Ok(Feed {
+            scenario,
+            recording,
+            next,
+            oracles: if withhold_truth {
+                vec![None; n]
+            } else {
+                oracles(scenario)
+            },
+            lasers: laser_angles(scenario),
+            truth_period,
+            active: active.to_vec(),
+            post: Post::new(names.to_vec(), None),
+            truth: truth_buffers(n, clock.ticks_in(scenario.duration_secs) / truth_period + 2),
+            position: vec![[0.0; 3]; n],
+            last_pose: vec![None; n],
+            radio: Vec::new(),
+            recorded_cmd: vec![None; n],
+        })
+    }
+
     fn robot_of(&self, name: &str) -> Result<usize, ReplayError> {
         self.scenario
             .robots
