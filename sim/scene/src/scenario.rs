@@ -268,18 +268,16 @@ pub enum MissionSpec {
 impl ScenarioFile {
     /// Checks scenario-level values (not the robots' files, not placement in the world).
     pub fn validate(&self, c: &Checker) -> Result<(), SceneError> {
-        if self.name.is_empty()
-            || !self
-                .name
-                .chars()
-                .all(|ch| ch.is_ascii_alphanumeric() || ch == '-' || ch == '_')
-        {
-            return Err(c.error_at(
-                &["name"],
-                format!("\"{}\"", self.name),
-                "a non-empty name of letters, digits, '-' and '_'",
-            ));
-        }
+        check_name(c, &["name"], &self.name)?;
+        self.check_timing(c)?;
+        check_world(c, &self.world)?;
+        self.check_coverage(c)?;
+        check_comms(c, &self.comms)?;
+        self.check_robots(c)
+    }
+
+    /// Checks the tick `dt_secs`, the run length and the truth rate (at most one per tick).
+    fn check_timing(&self, c: &Checker) -> Result<(), SceneError> {
         c.range(&["dt_secs"], self.dt_secs, 1e-6, 1.0)?;
         c.positive(&["duration_secs"], self.duration_secs)?;
         c.range(
@@ -293,106 +291,11 @@ impl ScenarioFile {
                 e,
                 &format!("a rate > 0 and <= the tick rate {} Hz", 1.0 / self.dt_secs),
             )
-        })?;
-        match (self.world.kind, &self.world.village, &self.world.indoor) {
-            (WorldKind::Village, _, Some(_)) => {
-                return Err(c.error_at(
-                    &["world", "indoor"],
-                    "(table)",
-                    "no [world.indoor] table when world.kind = \"village\"",
-                ))
-            }
-            (WorldKind::IndoorGrid, Some(_), _) => {
-                return Err(c.error_at(
-                    &["world", "village"],
-                    "(table)",
-                    "no [world.village] table when world.kind = \"indoor_grid\"",
-                ))
-            }
-            _ => {}
-        }
-        if let Some(v) = &self.world.village {
-            let at = |f: &'static str| ["world", "village", f];
-            c.range(&at("size_m"), v.size_m, 50.0, 5000.0)?;
-            c.range(&at("terrain_cell_m"), v.terrain_cell_m, 0.5, v.size_m / 4.0)?;
-            c.range(&at("relief_m"), v.relief_m, 0.0, 100.0)?;
-            c.range(&at("group_radius_m"), v.group_radius_m, 5.0, v.size_m / 2.0)?;
-            c.range(
-                &at("buildings_per_group"),
-                v.buildings_per_group as f64,
-                0.0,
-                200.0,
-            )?;
-            for (name, centre) in [
-                ("north_west_centre", v.north_west_centre),
-                ("south_east_centre", v.south_east_centre),
-            ] {
-                let half = v.size_m / 2.0 - v.group_radius_m;
-                if centre.iter().any(|c| !c.is_finite() || c.abs() > half) {
-                    return Err(c.error_at(
-                        &["world", "village", name],
-                        format!("{centre:?}"),
-                        format!("a centre with |x|, |y| <= {half} so the group fits in the world"),
-                    ));
-                }
-            }
-            for (i, b) in v.buildings.iter().enumerate() {
-                check_box(
-                    c,
-                    &["world", "village", "buildings"],
-                    i,
-                    b,
-                    v.size_m / 2.0,
-                    v.size_m / 2.0,
-                )?;
-            }
-        }
-        if let Some(g) = &self.world.indoor {
-            let at = |f: &'static str| ["world", "indoor", f];
-            c.range(&at("spacing_m"), g.spacing_m, 0.05, 5.0)?;
-            for (name, extent) in [("width_m", g.width_m), ("height_m", g.height_m)] {
-                c.range(&at(name), extent, 2.0 * g.spacing_m, 500.0)?;
-                let cells = extent / g.spacing_m;
-                if (cells - cells.round()).abs() > 1e-6 {
-                    return Err(c.error_at(
-                        &at(name),
-                        extent,
-                        format!(
-                            "a multiple of spacing_m = {} (the vertex grid must fill the floor)",
-                            g.spacing_m
-                        ),
-                    ));
-                }
-            }
-            c.range(&at("obstruction_ratio"), g.obstruction_ratio, 0.0, 0.6)?;
-            let [lo, hi] = g.obstacle_cells;
-            if lo == 0 || lo > hi {
-                return Err(c.error_at(
-                    &at("obstacle_cells"),
-                    format!("{:?}", g.obstacle_cells),
-                    "[min, max] cells with 1 <= min <= max",
-                ));
-            }
-            let [hlo, hhi] = g.obstacle_height_m;
-            if !(hlo.is_finite() && hhi.is_finite() && hlo > 0.0 && hlo <= hhi) {
-                return Err(c.error_at(
-                    &at("obstacle_height_m"),
-                    format!("{:?}", g.obstacle_height_m),
-                    "[min, max] metres with 0 < min <= max",
-                ));
-            }
-            c.range(&at("wall_height_m"), g.wall_height_m, 0.1, 20.0)?;
-            for (i, b) in g.obstacles.iter().enumerate() {
-                check_box(
-                    c,
-                    &["world", "indoor", "obstacles"],
-                    i,
-                    b,
-                    g.width_m / 2.0,
-                    g.height_m / 2.0,
-                )?;
-            }
-        }
+        })
+    }
+
+    /// Checks the `[coverage]` table: only in an indoor grid, by the coverage crate's rules.
+    fn check_coverage(&self, c: &Checker) -> Result<(), SceneError> {
         if let Some(cov) = &self.coverage {
             if self.world.kind != WorldKind::IndoorGrid {
                 return Err(c.error_at(
@@ -407,11 +310,11 @@ impl ScenarioFile {
                 .find(|r| matches!(r.mission, MissionSpec::CoverageParent));
             crate::params::check(c, &["coverage"], cov.rules(parent.map(|r| r.name.as_str())))?;
         }
-        let at = |f: &'static str| ["comms", f];
-        c.positive(&at("range_m"), self.comms.range_m)?;
-        c.range(&at("latency_s"), self.comms.latency_s, 0.0, 60.0)?;
-        c.positive(&at("bandwidth_bps"), self.comms.bandwidth_bps)?;
-        c.range(&at("loss"), self.comms.loss, 0.0, 1.0)?;
+        Ok(())
+    }
+
+    /// Checks the `[[robots]]` entries: at least one, each valid and named uniquely.
+    fn check_robots(&self, c: &Checker) -> Result<(), SceneError> {
         if self.robots.is_empty() {
             return Err(c.error_at(&["robots"], "(none)", "at least one [[robots]] entry"));
         }
@@ -425,18 +328,7 @@ impl ScenarioFile {
                     "a name not used by another robot in this scenario",
                 ));
             }
-            if r.name.is_empty()
-                || !r
-                    .name
-                    .chars()
-                    .all(|ch| ch.is_ascii_alphanumeric() || ch == '-' || ch == '_')
-            {
-                return Err(c.error_at(
-                    &["robots", &idx, "name"],
-                    format!("\"{}\"", r.name),
-                    "a non-empty name of letters, digits, '-' and '_'",
-                ));
-            }
+            check_name(c, &["robots", &idx, "name"], &r.name)?;
             for (f, v) in [
                 ("x", r.start.x),
                 ("y", r.start.y),
@@ -447,52 +339,67 @@ impl ScenarioFile {
                     return Err(c.error_at(&["robots", &idx, "start", f], v, "a finite number"));
                 }
             }
-            match (&r.mission, self.world.kind) {
-                (MissionSpec::GridGoals { .. }, WorldKind::Village) => {
-                    return Err(c.error_at(&["robots", &idx, "mission", "kind"], "\"grid_goals\"", "idle, waypoints or lawnmower in a village (grid_goals needs an indoor_grid world)"));
-                }
-                (MissionSpec::CoverageParent | MissionSpec::CoverageChild, WorldKind::Village) => {
-                    return Err(c.error_at(&["robots", &idx, "mission", "kind"], format!("{:?}", r.mission), "idle, waypoints or lawnmower in a village (coverage missions need an indoor_grid world)"));
-                }
-                (MissionSpec::CoverageParent, _) if self.coverage.is_none() => {
-                    return Err(c.error_at(&["robots", &idx, "mission", "kind"], "\"coverage_parent\"", "a mission other than coverage_parent, or a [coverage] table in the scenario"));
-                }
-                (MissionSpec::Waypoints { points }, _) => {
-                    for (k, p) in points.iter().enumerate() {
-                        if !(p.len() == 2 || p.len() == 3) || p.iter().any(|v| !v.is_finite()) {
-                            return Err(c.error_at(
-                                &["robots", &idx, "mission", "points", &k.to_string()],
-                                format!("{p:?}"),
-                                "[x, y] or [x, y, z] finite metres",
-                            ));
-                        }
+            self.check_mission(c, &idx, &r.mission)?;
+        }
+        Ok(())
+    }
+
+    /// Checks `robots[idx].mission`: its kind fits the world and the scenario, its values.
+    fn check_mission(
+        &self,
+        c: &Checker,
+        idx: &str,
+        mission: &MissionSpec,
+    ) -> Result<(), SceneError> {
+        match (mission, self.world.kind) {
+            (MissionSpec::GridGoals { .. }, WorldKind::Village) => {
+                return Err(c.error_at(&["robots", idx, "mission", "kind"], "\"grid_goals\"", "idle, waypoints or lawnmower in a village (grid_goals needs an indoor_grid world)"));
+            }
+            (MissionSpec::CoverageParent | MissionSpec::CoverageChild, WorldKind::Village) => {
+                return Err(c.error_at(&["robots", idx, "mission", "kind"], format!("{mission:?}"), "idle, waypoints or lawnmower in a village (coverage missions need an indoor_grid world)"));
+            }
+            (MissionSpec::CoverageParent, _) if self.coverage.is_none() => {
+                return Err(c.error_at(
+                    &["robots", idx, "mission", "kind"],
+                    "\"coverage_parent\"",
+                    "a mission other than coverage_parent, or a [coverage] table in the scenario",
+                ));
+            }
+            (MissionSpec::Waypoints { points }, _) => {
+                for (k, p) in points.iter().enumerate() {
+                    if !(p.len() == 2 || p.len() == 3) || p.iter().any(|v| !v.is_finite()) {
+                        return Err(c.error_at(
+                            &["robots", idx, "mission", "points", &k.to_string()],
+                            format!("{p:?}"),
+                            "[x, y] or [x, y, z] finite metres",
+                        ));
                     }
                 }
-                (
-                    MissionSpec::Lawnmower {
-                        width_m,
-                        spacing_m,
-                        altitude_m,
-                        ..
-                    },
-                    _,
-                ) => {
-                    c.range(
-                        &["robots", &idx, "mission", "width_m"],
-                        *width_m,
-                        0.0,
-                        10_000.0,
-                    )?;
-                    c.positive(&["robots", &idx, "mission", "spacing_m"], *spacing_m)?;
-                    c.range(
-                        &["robots", &idx, "mission", "altitude_m"],
-                        *altitude_m,
-                        1.0,
-                        1000.0,
-                    )?;
-                }
-                _ => {}
             }
+            (
+                MissionSpec::Lawnmower {
+                    width_m,
+                    spacing_m,
+                    altitude_m,
+                    ..
+                },
+                _,
+            ) => {
+                c.range(
+                    &["robots", idx, "mission", "width_m"],
+                    *width_m,
+                    0.0,
+                    10_000.0,
+                )?;
+                c.positive(&["robots", idx, "mission", "spacing_m"], *spacing_m)?;
+                c.range(
+                    &["robots", idx, "mission", "altitude_m"],
+                    *altitude_m,
+                    1.0,
+                    1000.0,
+                )?;
+            }
+            _ => {}
         }
         Ok(())
     }
@@ -508,6 +415,148 @@ impl ScenarioFile {
     }
 }
 
+/// Checks the `[world]` table: only its kind's generator table, each table's values.
+fn check_world(c: &Checker, world: &WorldSpec) -> Result<(), SceneError> {
+    match (world.kind, &world.village, &world.indoor) {
+        (WorldKind::Village, _, Some(_)) => {
+            return Err(c.error_at(
+                &["world", "indoor"],
+                "(table)",
+                "no [world.indoor] table when world.kind = \"village\"",
+            ))
+        }
+        (WorldKind::IndoorGrid, Some(_), _) => {
+            return Err(c.error_at(
+                &["world", "village"],
+                "(table)",
+                "no [world.village] table when world.kind = \"indoor_grid\"",
+            ))
+        }
+        _ => {}
+    }
+    if let Some(v) = &world.village {
+        check_village(c, v)?;
+    }
+    if let Some(g) = &world.indoor {
+        check_indoor(c, g)?;
+    }
+    Ok(())
+}
+
+/// Checks the `[world.village]` table: sizes, building groups inside the world, buildings.
+fn check_village(c: &Checker, v: &VillageSpec) -> Result<(), SceneError> {
+    let at = |f: &'static str| ["world", "village", f];
+    c.range(&at("size_m"), v.size_m, 50.0, 5000.0)?;
+    c.range(&at("terrain_cell_m"), v.terrain_cell_m, 0.5, v.size_m / 4.0)?;
+    c.range(&at("relief_m"), v.relief_m, 0.0, 100.0)?;
+    c.range(&at("group_radius_m"), v.group_radius_m, 5.0, v.size_m / 2.0)?;
+    c.range(
+        &at("buildings_per_group"),
+        v.buildings_per_group as f64,
+        0.0,
+        200.0,
+    )?;
+    for (name, centre) in [
+        ("north_west_centre", v.north_west_centre),
+        ("south_east_centre", v.south_east_centre),
+    ] {
+        let half = v.size_m / 2.0 - v.group_radius_m;
+        if centre.iter().any(|c| !c.is_finite() || c.abs() > half) {
+            return Err(c.error_at(
+                &["world", "village", name],
+                format!("{centre:?}"),
+                format!("a centre with |x|, |y| <= {half} so the group fits in the world"),
+            ));
+        }
+    }
+    for (i, b) in v.buildings.iter().enumerate() {
+        check_box(
+            c,
+            &["world", "village", "buildings"],
+            i,
+            b,
+            v.size_m / 2.0,
+            v.size_m / 2.0,
+        )?;
+    }
+    Ok(())
+}
+
+/// Checks the `[world.indoor]` table: a floor the vertex grid fills, obstacle ranges, obstacles.
+fn check_indoor(c: &Checker, g: &IndoorSpec) -> Result<(), SceneError> {
+    let at = |f: &'static str| ["world", "indoor", f];
+    c.range(&at("spacing_m"), g.spacing_m, 0.05, 5.0)?;
+    for (name, extent) in [("width_m", g.width_m), ("height_m", g.height_m)] {
+        c.range(&at(name), extent, 2.0 * g.spacing_m, 500.0)?;
+        let cells = extent / g.spacing_m;
+        if (cells - cells.round()).abs() > 1e-6 {
+            return Err(c.error_at(
+                &at(name),
+                extent,
+                format!(
+                    "a multiple of spacing_m = {} (the vertex grid must fill the floor)",
+                    g.spacing_m
+                ),
+            ));
+        }
+    }
+    c.range(&at("obstruction_ratio"), g.obstruction_ratio, 0.0, 0.6)?;
+    let [lo, hi] = g.obstacle_cells;
+    if lo == 0 || lo > hi {
+        return Err(c.error_at(
+            &at("obstacle_cells"),
+            format!("{:?}", g.obstacle_cells),
+            "[min, max] cells with 1 <= min <= max",
+        ));
+    }
+    let [hlo, hhi] = g.obstacle_height_m;
+    if !(hlo.is_finite() && hhi.is_finite() && hlo > 0.0 && hlo <= hhi) {
+        return Err(c.error_at(
+            &at("obstacle_height_m"),
+            format!("{:?}", g.obstacle_height_m),
+            "[min, max] metres with 0 < min <= max",
+        ));
+    }
+    c.range(&at("wall_height_m"), g.wall_height_m, 0.1, 20.0)?;
+    for (i, b) in g.obstacles.iter().enumerate() {
+        check_box(
+            c,
+            &["world", "indoor", "obstacles"],
+            i,
+            b,
+            g.width_m / 2.0,
+            g.height_m / 2.0,
+        )?;
+    }
+    Ok(())
+}
+
+/// Checks the `[comms]` table: range, latency, bandwidth and loss probability.
+fn check_comms(c: &Checker, comms: &CommsSpec) -> Result<(), SceneError> {
+    let at = |f: &'static str| ["comms", f];
+    c.positive(&at("range_m"), comms.range_m)?;
+    c.range(&at("latency_s"), comms.latency_s, 0.0, 60.0)?;
+    c.positive(&at("bandwidth_bps"), comms.bandwidth_bps)?;
+    c.range(&at("loss"), comms.loss, 0.0, 1.0)
+}
+
+/// Checks a name at `path`: non-empty, of ASCII letters, digits, '-' and '_'.
+fn check_name(c: &Checker, path: &[&str], name: &str) -> Result<(), SceneError> {
+    if name.is_empty()
+        || !name
+            .chars()
+            .all(|ch| ch.is_ascii_alphanumeric() || ch == '-' || ch == '_')
+    {
+        return Err(c.error_at(
+            path,
+            format!("\"{name}\""),
+            "a non-empty name of letters, digits, '-' and '_'",
+        ));
+    }
+    Ok(())
+}
+
+/// Checks `table[i]`, a box: sizes and height > 0, centre within `half_x` and `half_y`.
 fn check_box(
     c: &Checker,
     table: &[&str; 3],
