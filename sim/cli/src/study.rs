@@ -380,7 +380,7 @@ pub fn localize(
         let dir = out.join(format!("runs/seed-{seed}"));
         // `Some(None)`: a run to reuse; `Some(Some(why))`: a run to replace; `None`: no run.
         let verdict = made_by(&dir)?.map(|m| {
-            let this = hetsim_eval::results::build_sha256();
+            let this = hetsim_eval::manifest::build_sha256();
             not_reusable(&m, this, &base.file_hashes, backend.as_deref())
         });
         if let Some(None) = verdict {
@@ -522,7 +522,7 @@ mod tests {
             Some(MadeBy::default()),
             "nothing recorded"
         );
-        let this = hetsim_eval::results::build_sha256();
+        let this = hetsim_eval::manifest::build_sha256();
         assert_eq!(this.len(), 64, "{this}");
         write(&format!(
             r#"{{"build_sha256": "{this}", "files_sha256": {{"scenarios/lab.toml": "11"}},

@@ -16,7 +16,7 @@ use std::path::Path;
 pub struct Manifest {
     /// The renderer's adapter (`None` for an unrendered run).
     pub adapter: Option<Adapter>,
-    /// SHA-256 of the executable that made the run ([`crate::results::build_sha256`]); empty
+    /// SHA-256 of the executable that made the run ([`build_sha256`]); empty
     /// for a run from before manifests named it.
     #[serde(default)]
     pub build_sha256: String,
@@ -90,7 +90,7 @@ impl Manifest {
                 driver: a.driver.clone(),
                 name: a.name.clone(),
             }),
-            build_sha256: crate::results::build_sha256().to_string(),
+            build_sha256: build_sha256().to_string(),
             digest: digest.to_string(),
             dt_secs: scenario.clock.dt_secs(),
             duration_secs: scenario.duration_secs,
@@ -190,4 +190,36 @@ impl Timing {
         }
         crate::json::read(&path).map(Some)
     }
+}
+
+/// The running executable's SHA-256, hex (`"unknown"` where it cannot be read): which build
+/// made a run, in its manifest as `build_sha256`. Hashed once per process (about half a
+/// second for a release `hetsim`). `hetsim localize` runs a seed again rather than mix a run
+/// of another build into its study.
+pub fn build_sha256() -> &'static str {
+    static BUILD: std::sync::OnceLock<String> = std::sync::OnceLock::new();
+    BUILD.get_or_init(|| {
+        use sha2::{Digest, Sha256};
+        let hash = || -> std::io::Result<String> {
+            use std::io::Read;
+            // The running file itself (on Linux, even once a rebuild has replaced it).
+            let mut file = std::fs::File::open("/proc/self/exe")
+                .or_else(|_| std::fs::File::open(std::env::current_exe()?))?;
+            let mut hasher = Sha256::new();
+            let mut buf = vec![0u8; 1 << 20];
+            loop {
+                let n = file.read(&mut buf)?;
+                if n == 0 {
+                    break;
+                }
+                hasher.update(&buf[..n]);
+            }
+            Ok(hasher
+                .finalize()
+                .iter()
+                .map(|b| format!("{b:02x}"))
+                .collect())
+        };
+        hash().unwrap_or_else(|_| "unknown".into())
+    })
 }

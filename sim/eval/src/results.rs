@@ -99,38 +99,6 @@ pub fn write_run(
     Ok(RunFiles { dir, digest })
 }
 
-/// The running executable's SHA-256, hex (`"unknown"` where it cannot be read): which build
-/// made a run, in its manifest as `build_sha256`. Hashed once per process (about half a
-/// second for a release `hetsim`). `hetsim localize` runs a seed again rather than mix a run
-/// of another build into its study.
-pub fn build_sha256() -> &'static str {
-    static BUILD: std::sync::OnceLock<String> = std::sync::OnceLock::new();
-    BUILD.get_or_init(|| {
-        use sha2::{Digest, Sha256};
-        let hash = || -> std::io::Result<String> {
-            use std::io::Read;
-            // The running file itself (on Linux, even once a rebuild has replaced it).
-            let mut file = std::fs::File::open("/proc/self/exe")
-                .or_else(|_| std::fs::File::open(std::env::current_exe()?))?;
-            let mut hasher = Sha256::new();
-            let mut buf = vec![0u8; 1 << 20];
-            loop {
-                let n = file.read(&mut buf)?;
-                if n == 0 {
-                    break;
-                }
-                hasher.update(&buf[..n]);
-            }
-            Ok(hasher
-                .finalize()
-                .iter()
-                .map(|b| format!("{b:02x}"))
-                .collect())
-        };
-        hash().unwrap_or_else(|_| "unknown".into())
-    })
-}
-
 /// The run's files in the order the digest covers them (everything but the manifest and
 /// `timing.json`).
 fn files(scenario: &Scenario, result: &RunOutput, metrics: &Metrics) -> Vec<(String, Vec<u8>)> {

@@ -387,7 +387,7 @@ fn the_reports_sweep_folders_of_another_build_are_run_afresh() {
     // first row is not what this build computes.
     let identity = dir.join("identity.json");
     let ours = std::fs::read_to_string(&identity).unwrap();
-    let build = hetsim_eval::results::build_sha256();
+    let build = hetsim_eval::manifest::build_sha256();
     assert!(ours.contains(build), "{ours}");
     std::fs::write(&identity, ours.replace(build, &"0".repeat(64))).unwrap();
     let rows = dir.join("rows");

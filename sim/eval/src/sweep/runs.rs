@@ -272,7 +272,7 @@ impl Sweep {
         };
         let identity = serde_json::json!({
             "hetsim_version": env!("CARGO_PKG_VERSION"),
-            "build_sha256": crate::results::build_sha256(),
+            "build_sha256": crate::manifest::build_sha256(),
             "kind": format!("{:?}", self.file.kind).to_lowercase(),
             "base_scenario_sha256": hex(self.base_text.as_bytes()),
             "robot_files_sha256": robot_files,
