@@ -365,31 +365,8 @@ pub fn plan_with(
     if parent_start >= map.len() || !map.is_free(parent_start) {
         return Err(PlanError::BadStart(parent_start));
     }
-    let mut start = vec![parent_start];
-    if child_starts.is_empty() {
-        let dist = map.distances(parent_start, |_| true);
-        // Nearest first, but never in a dead end (a child there could be shut in by the
-        // parent).
-        let mut near: Vec<Vertex> = map
-            .vertices()
-            .into_iter()
-            .filter(|&v| {
-                v != parent_start && dist[v] != usize::MAX && map.neighbours(v).count() >= 2
-            })
-            .collect();
-        near.sort_by_key(|&v| (dist[v], v));
-        start.extend(near.into_iter().take(params.children));
-    } else {
-        start.extend_from_slice(child_starts);
-    }
-    for (k, &s) in start.iter().enumerate() {
-        if s >= map.len() || !map.is_free(s) {
-            return Err(PlanError::BadStart(s));
-        }
-        if start[..k].contains(&s) {
-            return Err(PlanError::SharedStart(s));
-        }
-    }
+    let start = start_positions(map, params, parent_start, child_starts);
+    check_starts(map, &start)?;
     let selection = select_parent_vertices(map, vis, params);
     // Parent vertices the parent cannot reach (another free-space component) are dropped:
     // what only they could see is reported as uncoverable.
@@ -409,78 +386,12 @@ pub fn plan_with(
         stage: 0,
         backing_off: 0,
     };
-    let mut child_sets = Vec::new();
-    let mut following_behaviours = 0;
-    let mut following_out_of_reach = 0;
-    let mut skipped_stages = Vec::new();
-    for (t, &vp) in order.iter().enumerate() {
-        run.stage = t;
-        match run.transition(vp) {
-            Ok(Some(cause)) => {
-                following_behaviours += 1;
-                following_out_of_reach += usize::from(cause == Following::HOutOfReach);
-            }
-            Ok(None) => {}
-            Err(_) => {
-                // Every step made so far was legal; the team simply stays where it got to
-                // and later stages pick up this stage's vertices.
-                skipped_stages.push(t);
-                child_sets.push(Vec::new());
-                continue;
-            }
-        }
-        let set: Vec<Vertex> = vis.los_free[vp]
-            .iter()
-            .copied()
-            .filter(|&v| !is_parent[v] && !run.imaged[v])
-            .collect();
-        child_sets.push(run.map_stage(&set)?);
-    }
-    // Seen freely from a vertex the parent can get to (a free-space component of its own
-    // is no parent placement's to see).
-    let reachable = map.distances(parent_start, |_| true);
-    let mut seen = vec![false; map.len()];
-    for v in map.vertices() {
-        if reachable[v] == usize::MAX {
-            continue;
-        }
-        for &w in &vis.los_free[v] {
-            seen[w] = true;
-        }
-    }
+    let stages = run.run_stages(&order, &is_parent)?;
+    let seen = seen_freely(map, vis, parent_start);
     // What the stages left: one vertex at a time, nearest to the parent first, from
     // whichever vertex that sees it freely a child can get there.
     run.stage = order.len();
-    let mut revisited = Vec::new();
-    // A vertex whose try failed is tried again only after another one was imaged (the
-    // team then stands otherwise), at most REVISIT_TRIES times in all.
-    let (mut tries, mut failed_after) = (vec![0; map.len()], vec![None; map.len()]);
-    loop {
-        let from_parent = map.distances(run.pos[0], |_| true);
-        let eligible = |v: Vertex| {
-            tries[v] < REVISIT_TRIES && failed_after[v].is_none_or(|n| n < revisited.len())
-        };
-        let Some(c) = map
-            .vertices()
-            .into_iter()
-            .filter(|&v| seen[v] && !is_parent[v] && !run.imaged[v] && eligible(v))
-            .filter(|&v| from_parent[v] != usize::MAX)
-            .min_by_key(|&v| (from_parent[v], v))
-        else {
-            break;
-        };
-        tries[c] += 1;
-        match run.revisit(c)? {
-            Some(j) => {
-                run.imaged[c] = true;
-                revisited.push(c);
-                if let Some(last) = run.frames.last_mut() {
-                    last.grabs.push((j, c));
-                }
-            }
-            None => failed_after[c] = Some(revisited.len()),
-        }
-    }
+    let revisited = run.revisit_left(&seen, &is_parent)?;
     let (unreached, uncoverable): (Vec<Vertex>, Vec<Vertex>) = map
         .vertices()
         .into_iter()
@@ -495,17 +406,185 @@ pub fn plan_with(
     Ok(Plan {
         vertices: map.vertices().len(),
         parent_vertices: order,
-        child_sets,
+        child_sets: stages.child_sets,
         uncoverable,
         unreached,
-        skipped_stages,
+        skipped_stages: stages.skipped_stages,
         revisited,
         start,
         mapping_timesteps,
         coordination_timesteps,
-        following_behaviours,
-        following_out_of_reach,
+        following_behaviours: stages.following_behaviours,
+        following_out_of_reach: stages.following_out_of_reach,
         robot_steps: run.robot_steps,
         frames: run.frames,
     })
+}
+
+/// Where the robots start: the parent on `parent_start`, the children on `child_starts`
+/// or, if empty, on the free vertices nearest the parent.
+fn start_positions(
+    map: &Map,
+    params: &CoverageParams,
+    parent_start: Vertex,
+    child_starts: &[Vertex],
+) -> Vec<Vertex> {
+    let mut start = vec![parent_start];
+    if child_starts.is_empty() {
+        let dist = map.distances(parent_start, |_| true);
+        // Nearest first, but never in a dead end (a child there could be shut in by the
+        // parent).
+        let mut near: Vec<Vertex> = map
+            .vertices()
+            .into_iter()
+            .filter(|&v| {
+                v != parent_start && dist[v] != usize::MAX && map.neighbours(v).count() >= 2
+            })
+            .collect();
+        near.sort_by_key(|&v| (dist[v], v));
+        start.extend(near.into_iter().take(params.children));
+    } else {
+        start.extend_from_slice(child_starts);
+    }
+    start
+}
+
+/// Checks that every start is a free vertex of the map and no two robots share one.
+fn check_starts(map: &Map, start: &[Vertex]) -> Result<(), PlanError> {
+    for (k, &s) in start.iter().enumerate() {
+        if s >= map.len() || !map.is_free(s) {
+            return Err(PlanError::BadStart(s));
+        }
+        if start[..k].contains(&s) {
+            return Err(PlanError::SharedStart(s));
+        }
+    }
+    Ok(())
+}
+
+/// `seen[w]`: some vertex the parent can get to from `parent_start` has `w` in its
+/// LOS_free.
+fn seen_freely(map: &Map, vis: &Visibility, parent_start: Vertex) -> Vec<bool> {
+    // Seen freely from a vertex the parent can get to (a free-space component of its own
+    // is no parent placement's to see).
+    let reachable = map.distances(parent_start, |_| true);
+    let mut seen = vec![false; map.len()];
+    for v in map.vertices() {
+        if reachable[v] == usize::MAX {
+            continue;
+        }
+        for &w in &vis.los_free[v] {
+            seen[w] = true;
+        }
+    }
+    seen
+}
+
+/// What the stages of the tour did, for the [`Plan`].
+struct StagesDone {
+    /// C(t) as imaged, per stage (empty for a skipped stage).
+    child_sets: Vec<Vec<Vertex>>,
+    /// Stage transitions done by the following behaviour.
+    following_behaviours: usize,
+    /// Of those, the ones where H was out of the children's reach.
+    following_out_of_reach: usize,
+    /// Stages the team could not be moved to.
+    skipped_stages: Vec<usize>,
+}
+
+impl Run<'_> {
+    /// Runs the stages of the tour `order`: each transition, then its mapping.
+    fn run_stages(
+        &mut self,
+        order: &[Vertex],
+        is_parent: &[bool],
+    ) -> Result<StagesDone, PlanError> {
+        let vis = self.vis;
+        let mut child_sets = Vec::new();
+        let mut following_behaviours = 0;
+        let mut following_out_of_reach = 0;
+        let mut skipped_stages = Vec::new();
+        for (t, &vp) in order.iter().enumerate() {
+            self.stage = t;
+            match self.transition(vp) {
+                Ok(Some(cause)) => {
+                    following_behaviours += 1;
+                    following_out_of_reach += usize::from(cause == Following::HOutOfReach);
+                }
+                Ok(None) => {}
+                Err(_) => {
+                    // Every step made so far was legal; the team simply stays where it got to
+                    // and later stages pick up this stage's vertices.
+                    skipped_stages.push(t);
+                    child_sets.push(Vec::new());
+                    continue;
+                }
+            }
+            let set: Vec<Vertex> = vis.los_free[vp]
+                .iter()
+                .copied()
+                .filter(|&v| !is_parent[v] && !self.imaged[v])
+                .collect();
+            child_sets.push(self.map_stage(&set)?);
+        }
+        Ok(StagesDone {
+            child_sets,
+            following_behaviours,
+            following_out_of_reach,
+            skipped_stages,
+        })
+    }
+
+    /// Images what the stages left among the vertices `seen` freely, one vertex at a time;
+    /// returns those imaged, in order.
+    fn revisit_left(
+        &mut self,
+        seen: &[bool],
+        is_parent: &[bool],
+    ) -> Result<Vec<Vertex>, PlanError> {
+        let mut revisited = Vec::new();
+        // A vertex whose try failed is tried again only after another one was imaged (the
+        // team then stands otherwise), at most REVISIT_TRIES times in all.
+        let (mut tries, mut failed_after): (Vec<u8>, Vec<Option<usize>>) =
+            (vec![0; self.map.len()], vec![None; self.map.len()]);
+        loop {
+            let Some(c) = self.next_left(seen, is_parent, &tries, &failed_after, revisited.len())
+            else {
+                break;
+            };
+            tries[c] += 1;
+            match self.revisit(c)? {
+                Some(j) => {
+                    self.imaged[c] = true;
+                    revisited.push(c);
+                    if let Some(last) = self.frames.last_mut() {
+                        last.grabs.push((j, c));
+                    }
+                }
+                None => failed_after[c] = Some(revisited.len()),
+            }
+        }
+        Ok(revisited)
+    }
+
+    /// The next vertex left to try: seen freely, not imaged, a try still due after
+    /// `revisited` vertices were imaged, and the nearest one the parent can get to.
+    fn next_left(
+        &self,
+        seen: &[bool],
+        is_parent: &[bool],
+        tries: &[u8],
+        failed_after: &[Option<usize>],
+        revisited: usize,
+    ) -> Option<Vertex> {
+        let map = self.map;
+        let from_parent = map.distances(self.pos[0], |_| true);
+        let eligible =
+            |v: Vertex| tries[v] < REVISIT_TRIES && failed_after[v].is_none_or(|n| n < revisited);
+        map.vertices()
+            .into_iter()
+            .filter(|&v| seen[v] && !is_parent[v] && !self.imaged[v] && eligible(v))
+            .filter(|&v| from_parent[v] != usize::MAX)
+            .min_by_key(|&v| (from_parent[v], v))
+    }
 }

@@ -64,127 +64,261 @@ pub fn stage_roadmaps(
     children: &[Vertex],
     child_set: &[Vertex],
 ) -> StageRoadmaps {
-    let in_set = {
-        let mut s = vec![false; map.len()];
-        for &c in child_set {
-            s[c] = true;
-        }
-        s
-    };
-    let region = |v: Vertex| v != parent && los_parent[v];
-    let anywhere = |v: Vertex| v != parent;
-    let path = |from: Vertex, to: Vertex| {
-        map.path_to(from, |v| v == to, region)
-            .or_else(|| map.path_to(from, |v| v == to, anywhere))
-    };
-
-    // Start points, against the direction of mapping.
-    let mut candidates = child_set.to_vec();
-    candidates.sort_by_key(|&v| (along(map, params, v), v));
-    let mut starts: Vec<Vertex> = Vec::new();
-    for &s in &candidates {
-        if starts.len() == params.children.min(children.len()) {
-            break;
-        }
-        let clear = starts.iter().all(|&o| {
-            !in_view(map, params, s, o, params.child_radius_m)
-                && !in_view(map, params, o, s, params.child_radius_m)
-        });
-        if clear {
-            starts.push(s);
-        }
-    }
-    // Assign starts to children: each start, in order, to the nearest free child.
-    let mut owner: Vec<Option<usize>> = vec![None; starts.len()];
-    let mut taken = vec![false; children.len()];
-    for (k, &s) in starts.iter().enumerate() {
-        let dist = map.distances_until(s, anywhere, children);
-        if let Some(j) = (0..children.len())
-            .filter(|&j| !taken[j])
-            .min_by_key(|&j| (dist[children[j]], j))
-        {
-            taken[j] = true;
-            owner[k] = Some(j);
-        }
-    }
-    // Goals, in the direction of mapping, spread out.
-    let mut goals: Vec<Vertex> = Vec::new();
-    for &s in &starts {
-        let ahead: Vec<Vertex> = child_set
-            .iter()
-            .copied()
-            .filter(|&g| along(map, params, g).0 >= along(map, params, s).0 && !goals.contains(&g))
-            .collect();
-        let goal = if goals.is_empty() {
-            ahead
-                .iter()
-                .copied()
-                .max_by_key(|&g| (along(map, params, g).0, std::cmp::Reverse(g)))
-        } else {
-            ahead.iter().copied().max_by(|&a, &b| {
-                let spread = |g: Vertex| {
-                    goals
-                        .iter()
-                        .map(|&o| map.distance_m(g, o))
-                        .fold(f64::INFINITY, f64::min)
-                };
-                spread(a).total_cmp(&spread(b)).then(b.cmp(&a))
-            })
-        };
-        goals.push(goal.unwrap_or(s));
-    }
+    let stage = Stage::new(map, params, los_parent, parent, children, child_set);
+    let starts = stage.start_points();
+    let owner = stage.assign_starts(&starts);
+    let goals = stage.spread_goals(&starts);
     let goals = pair_across(map, params, &starts, goals);
-    // Initial graphs: start -> goal.
-    let mut covered = vec![false; map.len()];
-    let mut routes: Vec<Vec<Vertex>> = Vec::new();
-    for (k, &s) in starts.iter().enumerate() {
-        let route = path(s, goals[k]).unwrap_or_else(|| vec![s]);
-        for &v in &route {
-            covered[v] = true;
-        }
-        routes.push(route);
-    }
-    let uncovered = |covered: &Vec<bool>| child_set.iter().any(|&c| !covered[c]);
-    let open = |v: Vertex, covered: &Vec<bool>| in_set[v] && !covered[v] && v != parent;
+    let (mut routes, mut covered) = stage.initial_routes(&starts, &goals);
     // Steps each child needs to get to its start point: the graphs grow "in parallel" in
     // time, so the child whose walk (approach and graph) is shortest grows first.
     // Each owned start's way from its child, found once: it orders the growth and begins
     // the child's walk.
-    let mut approaches: Vec<Option<Vec<Vertex>>> = starts
-        .iter()
-        .enumerate()
-        .map(|(k, &s)| owner[k].and_then(|j| path(children[j], s)))
-        .collect();
+    let approaches = stage.approaches(&starts, &owner);
     let approach: Vec<usize> = approaches
         .iter()
         .map(|p| p.as_ref().map_or(usize::MAX / 2, |p| p.len() - 1))
         .collect();
-    let mut unreachable = Vec::new();
-    while !routes.is_empty() && uncovered(&covered) {
+    let mut unreachable = stage.extend(&mut routes, &approach, &mut covered);
+    let walks = stage.walks(routes, &owner, approaches);
+    stage.add_untouched(&walks, &mut unreachable);
+    unreachable.sort_unstable();
+    StageRoadmaps { walks, unreachable }
+}
+
+/// One stage's child vertices, the children and the parent standing among them: what its
+/// walks are built from.
+struct Stage<'a> {
+    map: &'a Map,
+    params: &'a CoverageParams,
+    /// `los_parent[v]`: the parent standing on `parent` has `v` in its line of sight.
+    los_parent: &'a [bool],
+    parent: Vertex,
+    /// Where the children stand.
+    children: &'a [Vertex],
+    /// The child vertices C.
+    child_set: &'a [Vertex],
+    /// `in_set[v]`: `v` is in `child_set`.
+    in_set: Vec<bool>,
+}
+
+impl<'a> Stage<'a> {
+    /// The stage of [`stage_roadmaps`]' arguments, with its child set marked.
+    fn new(
+        map: &'a Map,
+        params: &'a CoverageParams,
+        los_parent: &'a [bool],
+        parent: Vertex,
+        children: &'a [Vertex],
+        child_set: &'a [Vertex],
+    ) -> Self {
+        let in_set = {
+            let mut s = vec![false; map.len()];
+            for &c in child_set {
+                s[c] = true;
+            }
+            s
+        };
+        Self {
+            map,
+            params,
+            los_parent,
+            parent,
+            children,
+            child_set,
+            in_set,
+        }
+    }
+
+    /// Whether a path may go through `v` where the parent can track it: in its line of
+    /// sight, never its vertex.
+    fn region(&self, v: Vertex) -> bool {
+        v != self.parent && self.los_parent[v]
+    }
+
+    /// Whether a path may go through `v` at all: anywhere but the parent's vertex.
+    fn anywhere(&self, v: Vertex) -> bool {
+        v != self.parent
+    }
+
+    /// A shortest path from `from` to `to` through [`Self::region`], else through
+    /// [`Self::anywhere`].
+    fn path(&self, from: Vertex, to: Vertex) -> Option<Vec<Vertex>> {
+        self.map
+            .path_to(from, |v| v == to, |v| self.region(v))
+            .or_else(|| self.map.path_to(from, |v| v == to, |v| self.anywhere(v)))
+    }
+
+    /// Whether some child vertex is not covered yet.
+    fn uncovered(&self, covered: &[bool]) -> bool {
+        self.child_set.iter().any(|&c| !covered[c])
+    }
+
+    /// Whether a graph may grow onto `v`: an uncovered child vertex, not the parent's.
+    fn open(&self, v: Vertex, covered: &[bool]) -> bool {
+        self.in_set[v] && !covered[v] && v != self.parent
+    }
+
+    /// Picks the start points: one per child at most, none in another's view.
+    fn start_points(&self) -> Vec<Vertex> {
+        let (map, params, children) = (self.map, self.params, self.children);
+        // Start points, against the direction of mapping.
+        let mut candidates = self.child_set.to_vec();
+        candidates.sort_by_key(|&v| (along(map, params, v), v));
+        let mut starts: Vec<Vertex> = Vec::new();
+        for &s in &candidates {
+            if starts.len() == params.children.min(children.len()) {
+                break;
+            }
+            let clear = starts.iter().all(|&o| {
+                !in_view(map, params, s, o, params.child_radius_m)
+                    && !in_view(map, params, o, s, params.child_radius_m)
+            });
+            if clear {
+                starts.push(s);
+            }
+        }
+        starts
+    }
+
+    /// The child owning each start (`None`: no child was left for it).
+    fn assign_starts(&self, starts: &[Vertex]) -> Vec<Option<usize>> {
+        let (map, children) = (self.map, self.children);
+        // Assign starts to children: each start, in order, to the nearest free child.
+        let mut owner: Vec<Option<usize>> = vec![None; starts.len()];
+        let mut taken = vec![false; children.len()];
+        for (k, &s) in starts.iter().enumerate() {
+            let dist = map.distances_until(s, |v| self.anywhere(v), children);
+            if let Some(j) = (0..children.len())
+                .filter(|&j| !taken[j])
+                .min_by_key(|&j| (dist[children[j]], j))
+            {
+                taken[j] = true;
+                owner[k] = Some(j);
+            }
+        }
+        owner
+    }
+
+    /// Picks a goal for each start, ahead of it and spread out (not yet paired across).
+    fn spread_goals(&self, starts: &[Vertex]) -> Vec<Vertex> {
+        let (map, params, child_set) = (self.map, self.params, self.child_set);
+        // Goals, in the direction of mapping, spread out.
+        let mut goals: Vec<Vertex> = Vec::new();
+        for &s in starts {
+            let ahead: Vec<Vertex> = child_set
+                .iter()
+                .copied()
+                .filter(|&g| {
+                    along(map, params, g).0 >= along(map, params, s).0 && !goals.contains(&g)
+                })
+                .collect();
+            let goal = if goals.is_empty() {
+                ahead
+                    .iter()
+                    .copied()
+                    .max_by_key(|&g| (along(map, params, g).0, std::cmp::Reverse(g)))
+            } else {
+                ahead.iter().copied().max_by(|&a, &b| {
+                    let spread = |g: Vertex| {
+                        goals
+                            .iter()
+                            .map(|&o| map.distance_m(g, o))
+                            .fold(f64::INFINITY, f64::min)
+                    };
+                    spread(a).total_cmp(&spread(b)).then(b.cmp(&a))
+                })
+            };
+            goals.push(goal.unwrap_or(s));
+        }
+        goals
+    }
+
+    /// The initial graphs, start -> goal, and the vertices they cover.
+    fn initial_routes(&self, starts: &[Vertex], goals: &[Vertex]) -> (Vec<Vec<Vertex>>, Vec<bool>) {
+        // Initial graphs: start -> goal.
+        let mut covered = vec![false; self.map.len()];
+        let mut routes: Vec<Vec<Vertex>> = Vec::new();
+        for (k, &s) in starts.iter().enumerate() {
+            let route = self.path(s, goals[k]).unwrap_or_else(|| vec![s]);
+            for &v in &route {
+                covered[v] = true;
+            }
+            routes.push(route);
+        }
+        (routes, covered)
+    }
+
+    /// Each start's way from the child owning it (`None`: no owner, or no way).
+    fn approaches(&self, starts: &[Vertex], owner: &[Option<usize>]) -> Vec<Option<Vec<Vertex>>> {
+        starts
+            .iter()
+            .enumerate()
+            .map(|(k, &s)| owner[k].and_then(|j| self.path(self.children[j], s)))
+            .collect()
+    }
+
+    /// Extends the graphs until the child set is covered, one growth or detour at a time;
+    /// returns the child vertices no detour reaches.
+    fn extend(
+        &self,
+        routes: &mut [Vec<Vertex>],
+        approach: &[usize],
+        covered: &mut [bool],
+    ) -> Vec<Vertex> {
+        let mut unreachable = Vec::new();
+        while !routes.is_empty() && self.uncovered(covered) {
+            if let Some((k, i, new)) = self.growth(routes, approach, covered) {
+                for &v in &new {
+                    covered[v] = true;
+                }
+                routes[k].splice(i + 1..i + 1, new);
+                continue;
+            }
+            self.detour(routes, covered, &mut unreachable);
+        }
+        unreachable
+    }
+
+    /// The growth of the shortest walk that can grow: the route, the index of the vertex
+    /// to insert after and the vertices to insert.
+    fn growth(
+        &self,
+        routes: &[Vec<Vertex>],
+        approach: &[usize],
+        covered: &[bool],
+    ) -> Option<(usize, usize, Vec<Vertex>)> {
+        let map = self.map;
         let mut order: Vec<usize> = (0..routes.len()).collect();
         order.sort_by_key(|&k| (approach[k] + routes[k].len(), k));
         // The shortest walk that can grow hills if it can, else branches out to a
         // neighbour.
-        let grown = order.iter().find_map(|&k| {
-            if let Some((i, a2, b2)) = hill(map, &routes[k], |v| open(v, &covered)) {
+        order.iter().find_map(|&k| {
+            if let Some((i, a2, b2)) = hill(map, &routes[k], |v| self.open(v, covered)) {
                 return Some((k, i, vec![a2, b2]));
             }
             routes[k].iter().enumerate().find_map(|(i, &u)| {
                 map.neighbours(u)
-                    .find(|&c| open(c, &covered))
+                    .find(|&c| self.open(c, covered))
                     .map(|c| (k, i, vec![c, u]))
             })
-        });
-        if let Some((k, i, new)) = grown {
-            for &v in &new {
-                covered[v] = true;
-            }
-            routes[k].splice(i + 1..i + 1, new);
-            continue;
-        }
+        })
+    }
+
+    /// Covers the first uncovered child vertex by a detour out and back from the nearest
+    /// graph vertex, or adds it to `unreachable` if no detour reaches it.
+    fn detour(
+        &self,
+        routes: &mut [Vec<Vertex>],
+        covered: &mut [bool],
+        unreachable: &mut Vec<Vertex>,
+    ) {
+        let map = self.map;
+        let region = |v: Vertex| self.region(v);
         // A detour out and back to the first uncovered child vertex, from the nearest
         // graph vertex.
-        let target = child_set
+        let target = self
+            .child_set
             .iter()
             .copied()
             .find(|&c| !covered[c])
@@ -212,30 +346,43 @@ pub fn stage_roadmaps(
             }
         }
     }
-    let mut walks: Vec<Vec<Vertex>> = children.iter().map(|&c| vec![c]).collect();
-    for (k, route) in routes.into_iter().enumerate() {
-        // A child cut off from its start point (the parent stands in the way) gets no graph;
-        // the vertices only that graph touched are left to the mop-up.
-        // (Growth inserts after a route's first vertex, so route[0] is still its start.)
-        if let (Some(j), Some(mut walk)) = (owner[k], approaches[k].take()) {
-            walk.extend(route.into_iter().skip(1));
-            walks[j] = walk;
+
+    /// Each child's walk: its way to its start point, then its graph; a child with neither
+    /// stays where it is.
+    fn walks(
+        &self,
+        routes: Vec<Vec<Vertex>>,
+        owner: &[Option<usize>],
+        mut approaches: Vec<Option<Vec<Vertex>>>,
+    ) -> Vec<Vec<Vertex>> {
+        let mut walks: Vec<Vec<Vertex>> = self.children.iter().map(|&c| vec![c]).collect();
+        for (k, route) in routes.into_iter().enumerate() {
+            // A child cut off from its start point (the parent stands in the way) gets no graph;
+            // the vertices only that graph touched are left to the mop-up.
+            // (Growth inserts after a route's first vertex, so route[0] is still its start.)
+            if let (Some(j), Some(mut walk)) = (owner[k], approaches[k].take()) {
+                walk.extend(route.into_iter().skip(1));
+                walks[j] = walk;
+            }
+        }
+        walks
+    }
+
+    /// Adds to `unreachable` the child vertices no walk touches.
+    fn add_untouched(&self, walks: &[Vec<Vertex>], unreachable: &mut Vec<Vertex>) {
+        // Anything in C left untouched by every walk (no start could be placed) is unreachable.
+        let mut touched = vec![false; self.map.len()];
+        for w in walks {
+            for &v in w {
+                touched[v] = true;
+            }
+        }
+        for &c in self.child_set {
+            if !touched[c] && !unreachable.contains(&c) {
+                unreachable.push(c);
+            }
         }
     }
-    // Anything in C left untouched by every walk (no start could be placed) is unreachable.
-    let mut touched = vec![false; map.len()];
-    for w in &walks {
-        for &v in w {
-            touched[v] = true;
-        }
-    }
-    for &c in child_set {
-        if !touched[c] && !unreachable.contains(&c) {
-            unreachable.push(c);
-        }
-    }
-    unreachable.sort_unstable();
-    StageRoadmaps { walks, unreachable }
 }
 
 /// `goals` (one per start) paired with `starts` in the same order across the direction of

@@ -329,10 +329,79 @@ fn accumulate(sum: (f64, f64), heading: f64) -> (f64, f64) {
     (sum.0 + heading.cos(), sum.1 + heading.sin())
 }
 
+/// What one step's messages brought that the phase acts on (the rest they set on the stack).
+struct Readings<'a> {
+    /// The step's camera image, the last if several.
+    image: Option<&'a Image>,
+    /// Distance the step's encoder readings counted, metres (uncalibrated).
+    driven: f64,
+    /// The time the step's encoder readings span (none: it has counted nothing, which is
+    /// not standing).
+    counted_ns: u64,
+}
+
+/// The step a phase is advanced by.
+#[derive(Clone, Copy)]
+struct Tick {
+    /// Sim time of the step, nanoseconds.
+    now_ns: u64,
+    /// The current order's sequence number (0 before any).
+    seq: u32,
+    /// Distance the step's encoder readings counted, calibrated, metres.
+    driven: f64,
+    /// The time the step's encoder readings span.
+    counted_ns: u64,
+}
+
 impl ChildStack {
     /// The command for one step's messages, once the boundary has checked them
     /// ([`RobotStack::step`] checks, then calls this).
     pub fn command(&mut self, now_ns: u64, inbox: &[SensorMsg]) -> Command {
+        let Readings {
+            image,
+            driven,
+            counted_ns,
+        } = self.read_inbox(inbox);
+        self.odometer_m += driven;
+        // Calibrated (from the database's message on), the encoders' distance is scaled.
+        let driven = driven * self.odometry_scale;
+        let seq = self.seq.unwrap_or(0);
+        let tick = Tick {
+            now_ns,
+            seq,
+            driven,
+            counted_ns,
+        };
+        match self.phase.clone() {
+            Phase::Idle => Command::Stop,
+            Phase::Turning {
+                target,
+                then_drive,
+                grab,
+            } => self.turn(now_ns, target, then_drive, grab),
+            Phase::Driving {
+                target,
+                remaining_m,
+                driven_m,
+                headings,
+                progress,
+            } => self.drive(tick, target, remaining_m, driven_m, headings, progress),
+            Phase::Stopping {
+                driven_m,
+                headings,
+                since_ns,
+            } => self.stop(tick, driven_m, headings, since_ns),
+            Phase::Settling {
+                since_ns,
+                vertex,
+                headings,
+            } => self.settle(tick, image, since_ns, vertex, headings),
+        }
+    }
+
+    /// Reads one step's messages as they came: compass readings, encoder counts, the
+    /// parent's radio and the camera.
+    fn read_inbox<'a>(&mut self, inbox: &'a [SensorMsg]) -> Readings<'a> {
         let mut image: Option<&Image> = None;
         let mut driven = 0.0;
         // The time the step's encoder readings span (none: it has counted nothing, which is
@@ -340,18 +409,7 @@ impl ChildStack {
         let mut counted_ns = 0u64;
         for msg in inbox {
             match msg {
-                SensorMsg::Compass(c) => {
-                    self.heading = Some(c.heading_rad);
-                    self.fresh_heading = true;
-                    match &mut self.phase {
-                        Phase::Driving { headings, .. }
-                        | Phase::Stopping { headings, .. }
-                        | Phase::Settling { headings, .. } => {
-                            *headings = accumulate(*headings, c.heading_rad);
-                        }
-                        _ => {}
-                    }
-                }
+                SensorMsg::Compass(c) => self.read_compass(c.heading_rad),
                 SensorMsg::WheelOdometry(o) => {
                     driven += (o.left_m + o.right_m) / 2.0;
                     if let Some(t0) = self.odometry_ns {
@@ -360,173 +418,208 @@ impl ChildStack {
                     self.odometry_ns =
                         Some(self.odometry_ns.map_or(o.stamp_ns, |t| t.max(o.stamp_ns)));
                 }
-                SensorMsg::Comms(d) if d.from == self.parent => match TeamMsg::decode(d) {
-                    Some(TeamMsg::Order { seq, order }) => self.obey(seq, order),
-                    Some(TeamMsg::Localize {
-                        seq,
-                        grid,
-                        places,
-                        path,
-                        heading_rad,
-                        odometry_scale,
-                    }) if self.accept(seq) => {
-                        // A scale under 0.8 or over 1.25 is no wheel's slip or encoders'
-                        // error (a c't-Bot's: 2 % and a 2 % sigma): a bad measurement, not
-                        // used.
-                        self.odometry_scale = if (0.8..=1.25).contains(&odometry_scale) {
-                            odometry_scale
-                        } else {
-                            1.0
-                        };
-                        let tour =
-                            tour::Tour::new(seq, grid, places, path, heading_rad, self.params.seed);
-                        self.phase = tour.first();
-                        self.tour = Some(tour);
-                    }
-                    Some(TeamMsg::Poll { seq }) if self.seq == Some(seq) => {
-                        self.accept(seq);
-                    }
-                    _ => {}
-                },
+                SensorMsg::Comms(d) if d.from == self.parent => self.hear(d),
                 SensorMsg::Image(i) => image = Some(i),
                 _ => {}
             }
         }
-        self.odometer_m += driven;
-        // Calibrated (from the database's message on), the encoders' distance is scaled.
-        let driven = driven * self.odometry_scale;
-        let seq = self.seq.unwrap_or(0);
-        match self.phase.clone() {
-            Phase::Idle => Command::Stop,
-            Phase::Turning {
-                target,
-                then_drive,
-                grab,
-            } => {
-                let Some(heading) = self.heading else {
-                    return Command::Stop;
-                };
-                let error = wrap_angle(target - heading);
-                if error.abs() <= self.params.aim_tolerance_rad && self.fresh_heading {
-                    self.phase = match (then_drive, grab) {
-                        (Some(d), _) => Phase::Driving {
-                            target,
-                            remaining_m: d,
-                            driven_m: 0.0,
-                            headings: (0.0, 0.0),
-                            progress: (0.0, now_ns),
-                        },
-                        (None, Some(vertex)) => Phase::Settling {
-                            since_ns: now_ns,
-                            vertex,
-                            headings: (0.0, 0.0),
-                        },
-                        (None, None) => Phase::Idle,
-                    };
-                    return Command::Stop;
-                }
-                // Turn only as far as a compass period allows, so a noisy reading is not
-                // overshot: proportional, with a floor so that small errors still close.
-                self.fresh_heading = false;
-                // (A robot file may allow less than the floor: then its maximum is the rate.)
-                let max = self.params.max_turn_radps;
-                let rate = (1.5 * error).abs().clamp(0.25f64.min(max), max);
-                self.wheels(0.0, rate * error.signum())
+        Readings {
+            image,
+            driven,
+            counted_ns,
+        }
+    }
+
+    /// Keeps a compass reading, and adds it to the headings the phase averages.
+    fn read_compass(&mut self, heading_rad: f64) {
+        self.heading = Some(heading_rad);
+        self.fresh_heading = true;
+        match &mut self.phase {
+            Phase::Driving { headings, .. }
+            | Phase::Stopping { headings, .. }
+            | Phase::Settling { headings, .. } => {
+                *headings = accumulate(*headings, heading_rad);
             }
-            Phase::Driving {
-                target,
-                remaining_m,
-                driven_m,
-                headings,
-                mut progress,
-            } => {
-                let remaining = remaining_m - driven;
-                let driven_m = driven_m + driven;
-                // Stalled (against an obstacle, the wheels held): less than 1 cm in the last
-                // two seconds ends the drive, so that the parent hears how far it got.
-                let stalled = if now_ns >= progress.1 + 2_000_000_000 {
-                    let stuck = driven_m - progress.0 < 0.01;
-                    progress = (driven_m, now_ns);
-                    stuck
+            _ => {}
+        }
+    }
+
+    /// Handles a radio message from the parent: an order, the database or a poll.
+    fn hear(&mut self, d: &hetsim_msgs::Delivered) {
+        match TeamMsg::decode(d) {
+            Some(TeamMsg::Order { seq, order }) => self.obey(seq, order),
+            Some(TeamMsg::Localize {
+                seq,
+                grid,
+                places,
+                path,
+                heading_rad,
+                odometry_scale,
+            }) if self.accept(seq) => {
+                // A scale under 0.8 or over 1.25 is no wheel's slip or encoders'
+                // error (a c't-Bot's: 2 % and a 2 % sigma): a bad measurement, not
+                // used.
+                self.odometry_scale = if (0.8..=1.25).contains(&odometry_scale) {
+                    odometry_scale
                 } else {
-                    false
+                    1.0
                 };
-                if remaining <= 0.0 || stalled {
-                    self.phase = Phase::Stopping {
-                        driven_m,
-                        headings,
-                        since_ns: now_ns,
-                    };
-                    return Command::Stop;
-                }
-                self.phase = Phase::Driving {
+                let tour = tour::Tour::new(seq, grid, places, path, heading_rad, self.params.seed);
+                self.phase = tour.first();
+                self.tour = Some(tour);
+            }
+            Some(TeamMsg::Poll { seq }) if self.seq == Some(seq) => {
+                self.accept(seq);
+            }
+            _ => {}
+        }
+    }
+
+    /// Turns towards `target` by compass; once aimed, starts the drive or the settling.
+    fn turn(
+        &mut self,
+        now_ns: u64,
+        target: f64,
+        then_drive: Option<f64>,
+        grab: Option<(usize, usize)>,
+    ) -> Command {
+        let Some(heading) = self.heading else {
+            return Command::Stop;
+        };
+        let error = wrap_angle(target - heading);
+        if error.abs() <= self.params.aim_tolerance_rad && self.fresh_heading {
+            self.phase = match (then_drive, grab) {
+                (Some(d), _) => Phase::Driving {
                     target,
-                    remaining_m: remaining,
-                    driven_m,
-                    headings,
-                    progress,
-                };
-                // Straight by compass: the wheels' speed errors would curve the path by
-                // several degrees a second.
-                let hold = self
-                    .heading
-                    .map_or(0.0, |h| (1.0 * wrap_angle(target - h)).clamp(-0.3, 0.3));
-                self.wheels(self.params.speed_mps, hold)
-            }
-            Phase::Stopping {
+                    remaining_m: d,
+                    driven_m: 0.0,
+                    headings: (0.0, 0.0),
+                    progress: (0.0, now_ns),
+                },
+                (None, Some(vertex)) => Phase::Settling {
+                    since_ns: now_ns,
+                    vertex,
+                    headings: (0.0, 0.0),
+                },
+                (None, None) => Phase::Idle,
+            };
+            return Command::Stop;
+        }
+        // Turn only as far as a compass period allows, so a noisy reading is not
+        // overshot: proportional, with a floor so that small errors still close.
+        self.fresh_heading = false;
+        // (A robot file may allow less than the floor: then its maximum is the rate.)
+        let max = self.params.max_turn_radps;
+        let rate = (1.5 * error).abs().clamp(0.25f64.min(max), max);
+        self.wheels(0.0, rate * error.signum())
+    }
+
+    /// Drives straight by compass, counting the distance; at its end or stalled, stops.
+    fn drive(
+        &mut self,
+        tick: Tick,
+        target: f64,
+        remaining_m: f64,
+        driven_m: f64,
+        headings: (f64, f64),
+        mut progress: (f64, u64),
+    ) -> Command {
+        let Tick { now_ns, driven, .. } = tick;
+        let remaining = remaining_m - driven;
+        let driven_m = driven_m + driven;
+        // Stalled (against an obstacle, the wheels held): less than 1 cm in the last
+        // two seconds ends the drive, so that the parent hears how far it got.
+        let stalled = if now_ns >= progress.1 + 2_000_000_000 {
+            let stuck = driven_m - progress.0 < 0.01;
+            progress = (driven_m, now_ns);
+            stuck
+        } else {
+            false
+        };
+        if remaining <= 0.0 || stalled {
+            self.phase = Phase::Stopping {
+                driven_m,
+                headings,
+                since_ns: now_ns,
+            };
+            return Command::Stop;
+        }
+        self.phase = Phase::Driving {
+            target,
+            remaining_m: remaining,
+            driven_m,
+            headings,
+            progress,
+        };
+        // Straight by compass: the wheels' speed errors would curve the path by
+        // several degrees a second.
+        let hold = self
+            .heading
+            .map_or(0.0, |h| (1.0 * wrap_angle(target - h)).clamp(-0.3, 0.3));
+        self.wheels(self.params.speed_mps, hold)
+    }
+
+    /// Counts the roll to a stop; once standing (or a second on), reports the drive.
+    fn stop(&mut self, tick: Tick, driven_m: f64, headings: (f64, f64), since_ns: u64) -> Command {
+        let Tick {
+            now_ns,
+            seq,
+            driven,
+            counted_ns,
+        } = tick;
+        // The drive is reported with what the encoders counted while it rolled to a
+        // stop (about 7 mm at 0.15 m/s): dead reckoning from the report, the parent's
+        // out of view and the child's own on its run, is not short by that on every
+        // drive. Standing: encoder readings of under 1 cm/s (at the c't-Bot's 10 Hz,
+        // the second or third reading after the stop), or a second on.
+        let driven_m = driven_m + driven;
+        let heading = self.mean_heading(headings);
+        let standing = counted_ns > 0 && driven.abs() < 0.01 * counted_ns as f64 / 1e9;
+        if standing || now_ns >= since_ns + 1_000_000_000 {
+            self.finish(TeamMsg::Done {
+                seq,
+                driven_m,
+                heading_rad: heading,
+            });
+        } else {
+            self.phase = Phase::Stopping {
                 driven_m,
                 headings,
                 since_ns,
-            } => {
-                // The drive is reported with what the encoders counted while it rolled to a
-                // stop (about 7 mm at 0.15 m/s): dead reckoning from the report, the parent's
-                // out of view and the child's own on its run, is not short by that on every
-                // drive. Standing: encoder readings of under 1 cm/s (at the c't-Bot's 10 Hz,
-                // the second or third reading after the stop), or a second on.
-                let driven_m = driven_m + driven;
-                let heading = if headings == (0.0, 0.0) {
-                    self.heading.unwrap_or(0.0)
-                } else {
-                    headings.1.atan2(headings.0)
-                };
-                let standing = counted_ns > 0 && driven.abs() < 0.01 * counted_ns as f64 / 1e9;
-                if standing || now_ns >= since_ns + 1_000_000_000 {
-                    self.finish(TeamMsg::Done {
-                        seq,
-                        driven_m,
-                        heading_rad: heading,
-                    });
-                } else {
-                    self.phase = Phase::Stopping {
-                        driven_m,
-                        headings,
-                        since_ns,
-                    };
-                }
-                Command::Stop
-            }
-            Phase::Settling {
-                since_ns,
+            };
+        }
+        Command::Stop
+    }
+
+    /// Waits for an image taken after settling, and sends it.
+    fn settle(
+        &mut self,
+        tick: Tick,
+        image: Option<&Image>,
+        since_ns: u64,
+        vertex: (usize, usize),
+        headings: (f64, f64),
+    ) -> Command {
+        if let Some(img) = image.filter(|i| i.stamp_ns >= since_ns + self.params.settle_ns) {
+            let heading = self.mean_heading(headings);
+            self.finish(TeamMsg::Grabbed {
+                seq: tick.seq,
                 vertex,
-                headings,
-            } => {
-                if let Some(img) = image.filter(|i| i.stamp_ns >= since_ns + self.params.settle_ns)
-                {
-                    let heading = if headings == (0.0, 0.0) {
-                        self.heading.unwrap_or(0.0)
-                    } else {
-                        headings.1.atan2(headings.0)
-                    };
-                    self.finish(TeamMsg::Grabbed {
-                        seq,
-                        vertex,
-                        heading_rad: heading,
-                        image: img.clone(),
-                        odometer_m: self.odometer_m,
-                    });
-                }
-                Command::Stop
-            }
+                heading_rad: heading,
+                image: img.clone(),
+                odometer_m: self.odometer_m,
+            });
+        }
+        Command::Stop
+    }
+
+    /// The mean of the compass readings summed in `headings`, or the last reading if none
+    /// was summed.
+    fn mean_heading(&self, headings: (f64, f64)) -> f64 {
+        if headings == (0.0, 0.0) {
+            self.heading.unwrap_or(0.0)
+        } else {
+            headings.1.atan2(headings.0)
         }
     }
 }
