@@ -547,11 +547,8 @@ impl Run<'_> {
         // team then stands otherwise), at most REVISIT_TRIES times in all.
         let (mut tries, mut failed_after): (Vec<u8>, Vec<Option<usize>>) =
             (vec![0; self.map.len()], vec![None; self.map.len()]);
-        loop {
-            let Some(c) = self.next_left(seen, is_parent, &tries, &failed_after, revisited.len())
-            else {
-                break;
-            };
+        while let Some(c) = self.next_left(seen, is_parent, &tries, &failed_after, revisited.len())
+        {
             tries[c] += 1;
             match self.revisit(c)? {
                 Some(j) => {
