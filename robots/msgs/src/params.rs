@@ -4,7 +4,7 @@
 //! and names the file, the line and the field where one fails.
 
 /// One thing a settings value must be, with the value given. `field` is the path inside the
-/// table (`["edge_drift_translation", "1"]` for an array's element).
+/// table (`["edge_drift", "translation", "1"]` for an array's element).
 #[derive(Clone, Debug, PartialEq)]
 pub enum Rule {
     /// A finite number in the closed range `[lo, hi]`.

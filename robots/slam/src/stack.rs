@@ -78,8 +78,8 @@ mod events;
 mod params;
 pub use params::{EdgeDrift, SlamParams};
 
-mod tuning;
-pub use tuning::SlamTuning;
+mod table;
+pub use table::{SlamTable, SlamTableError};
 
 mod places;
 pub use places::PLACE_TOPIC;

@@ -271,7 +271,8 @@ impl KeyFrame {
 }
 
 /// Tuning of [`match_keyframes`].
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct MatchParams {
     /// Largest Hamming distance of a descriptor match (of 256 bits).
     pub max_distance: u32,

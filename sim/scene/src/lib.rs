@@ -24,8 +24,8 @@ pub use load::{
     load_robot_model, load_scenario, load_scenario_text, LoadOptions, ResolvedRobot, Scenario,
 };
 pub use robot::{
-    camera_geometry, Body, DriveKind, Helicopter, Mount, PilotTable, RobotModel, Sensor,
-    SlamTuning, SteeringKind, Wheels, HAT_SCALE, HAT_THICKNESS_M,
+    camera_geometry, Body, DriveKind, Helicopter, Mount, PilotTable, RobotModel, Sensor, SlamTable,
+    SteeringKind, Wheels, HAT_SCALE, HAT_THICKNESS_M,
 };
 pub use scenario::{
     BoxSpec, CommsSpec, CoverageTable, IndoorSpec, MissionSpec, RobotSpec, ScenarioFile, Start,

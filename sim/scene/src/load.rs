@@ -293,9 +293,25 @@ fn lookup_mut<'a>(table: &'a mut toml::Table, dotted: &str) -> Option<&'a mut to
     if rest.is_empty() {
         return table.get_mut(*first);
     }
-    // `[slam]` is the one table a robot file may leave out whose fields may be overridden.
-    if *first == "slam" && !table.contains_key("slam") {
-        table.insert("slam".into(), toml::Value::Table(toml::Table::new()));
+    // `[slam]` is the one table a robot file may leave out whose fields may be overridden,
+    // and its nested tables (`edge_drift`, `matching`, `line_prior`) too: they are made on
+    // the way, and whether the field exists is decided by the SLAM's own parsing.
+    if *first == "slam" {
+        let mut at = table
+            .entry("slam")
+            .or_insert_with(|| toml::Value::Table(toml::Table::new()));
+        for seg in &rest[..rest.len() - 1] {
+            at = at
+                .as_table_mut()?
+                .entry(*seg)
+                .or_insert_with(|| toml::Value::Table(toml::Table::new()));
+        }
+        let last = rest[rest.len() - 1];
+        return Some(
+            at.as_table_mut()?
+                .entry(last)
+                .or_insert(toml::Value::Boolean(false)),
+        );
     }
     let mut current = table.get_mut(*first)?;
     for (k, seg) in rest.iter().enumerate() {

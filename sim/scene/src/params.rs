@@ -1,5 +1,5 @@
 //! Checks a settings table that robot software owns against the rules its crate states
-//! ([`hetsim_msgs::params::Rule`]): a robot file's `[slam]` ([`hetsim_slam::stack::SlamTuning`])
+//! ([`hetsim_msgs::params::Rule`]): a robot file's `[slam]` ([`hetsim_slam::stack::SlamParams::rules`])
 //! and `[pilot]` ([`hetsim_pilot::PilotTable`]), a scenario's `[coverage]`
 //! ([`hetsim_coverage::CoverageTable`]). The fields, their ranges and their meaning are the
 //! robot software's; what is here is naming the file, line and field of the first that fails.

@@ -9,7 +9,7 @@ use serde::{Deserialize, Serialize};
 mod validate;
 
 pub use hetsim_pilot::{PilotTable, SteeringKind};
-pub use hetsim_slam::stack::SlamTuning;
+pub use hetsim_slam::stack::SlamTable;
 
 /// A robot description.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -31,7 +31,21 @@ pub struct RobotModel {
     pub sensors: Vec<Sensor>,
     /// Tuning of its SLAM software, where it runs one (absent fields: the seed's values).
     #[serde(default)]
-    pub slam: SlamTuning,
+    pub slam: SlamTable,
+}
+
+impl RobotModel {
+    /// The SLAM software's parameters: the seed's for the robot's kind (the helicopter's, or a
+    /// ground robot's) with the robot file's `[slam]` table written over them.
+    pub fn slam_params(
+        &self,
+    ) -> Result<hetsim_slam::stack::SlamParams, hetsim_slam::stack::SlamTableError> {
+        let seed = match self.body.drive {
+            DriveKind::Helicopter => hetsim_slam::stack::SlamParams::aerial(),
+            _ => hetsim_slam::stack::SlamParams::ground(),
+        };
+        self.slam.over(&seed)
+    }
 }
 
 /// How a robot moves.

@@ -59,12 +59,11 @@ pub fn build_stack(
             );
             // The seed's SLAM (which carries the stereo VO): local EKF sub-maps with
             // inverse-depth points, initialized with the seed's values for the robot kind.
-            let mut params = match robot.model.body.drive {
-                DriveKind::Helicopter => hetsim_slam::stack::SlamParams::aerial(),
-                _ => hetsim_slam::stack::SlamParams::ground(),
-            };
+            let mut params = robot
+                .model
+                .slam_params()
+                .expect("the [slam] table was checked when its robot file was loaded");
             params.cooperative = !open_loop;
-            robot.model.slam.apply(&mut params);
             // The team's frame is the first sub-map of the scenario's first robot (seed
             // Section V: Dala's); every other robot starts in its own until an event links it.
             params.reference_robot = scenario.robots.first().map(|r| r.spec.name.clone());

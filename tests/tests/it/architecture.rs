@@ -173,7 +173,7 @@ fn robot_crates_own_their_tables_and_the_loader_and_stacks_keep_no_copy() {
         v.as_object().expect("a table").keys().cloned().collect()
     };
     fields.extend(names(
-        serde_json::to_value(hetsim_slam::stack::SlamTuning::default()).unwrap(),
+        serde_json::to_value(hetsim_slam::stack::SlamParams::ground()).unwrap(),
     ));
     fields.extend(names(
         serde_json::to_value(hetsim_coverage::CoverageTable::default()).unwrap(),

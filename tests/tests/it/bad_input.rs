@@ -194,6 +194,35 @@ fn negative_sensor_rate() {
 }
 
 #[test]
+fn slam_table_unknown_field_and_value_out_of_range() {
+    // The [slam] table's fields are the SLAM's own parameters: a misspelt one is refused
+    // with the fields that exist, a value out of its range with the range.
+    let robot = format!(
+        "{}\n[slam]\nsigma_px = 0.8\n[slam.matching]\nmin_inlier = 5\n",
+        ctbot()
+    );
+    let (_, e, _d) = load(SCENARIO, Some(&robot));
+    assert_names(
+        &e,
+        "models/ctbot.toml",
+        line_of(&robot, "min_inlier = 5"),
+        "slam.matching.min_inlier",
+        "5",
+        "`min_inliers`",
+    );
+    let robot = format!("{}\n[slam]\nmatching = {{ ratio = 1.5 }}\n", ctbot());
+    let (_, e, _d) = load(SCENARIO, Some(&robot));
+    assert_names(
+        &e,
+        "models/ctbot.toml",
+        line_of(&robot, "matching = "),
+        "slam.matching.ratio",
+        "1.5",
+        "[0.01, 1]",
+    );
+}
+
+#[test]
 fn sensor_faster_than_the_tick() {
     let robot = ctbot().replace("rate_hz = 10.0", "rate_hz = 500.0");
     let (_, e, _d) = load(SCENARIO, Some(&robot));

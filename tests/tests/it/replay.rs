@@ -205,7 +205,7 @@ fn a_replayed_village_computes_the_live_runs_bytes_and_a_changed_parameter_chang
         "--set",
         "robots.ressac.slam.vo_covariance_scale=10",
         "--set",
-        "robots.ressac.slam.edge_drift_translation=[0.02,0.02,0.02]",
+        "robots.ressac.slam.edge_drift.translation=[0.02,0.02,0.02]",
         "--out",
         &s(&scaled),
     ]);
@@ -215,14 +215,14 @@ fn a_replayed_village_computes_the_live_runs_bytes_and_a_changed_parameter_chang
             "replay",
             &s(&rec),
             "--set",
-            "robots.ressac.slam.edge_drift_translation=[0.02,-1,0.02]",
+            "robots.ressac.slam.edge_drift.translation=[0.02,-1,0.02]",
             "--out",
             &s(&bad),
         ],
         &bad,
     );
     assert!(
-        e.contains("edge_drift_translation") && e.contains("-1"),
+        e.contains("edge_drift.translation") && e.contains("-1"),
         "{e}"
     );
     // Another tick would feed the recorded messages at other ticks: refused.

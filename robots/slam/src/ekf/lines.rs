@@ -53,7 +53,8 @@ pub struct LineInfo {
 }
 
 /// The prior on a new line's two unmeasured degrees of freedom (Eqs. 15-17).
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct LinePrior {
     /// `β`: with the unit moment of [`line_through`], `β1` is the inverse of the line's
     /// distance (m⁻¹), `β2` tilts it out of the plane parallel to the image.

@@ -2,9 +2,13 @@
 
 use crate::lines::LinePrior;
 use hetsim_vision::place::MatchParams;
+use serde::{Deserialize, Serialize};
 
-/// Tuning of the local level.
-#[derive(Clone, Debug, PartialEq)]
+/// Tuning of the SLAM software: the seed's values per robot kind ([`SlamParams::ground`],
+/// [`SlamParams::aerial`]), any of which a robot file's `[slam]` table may change
+/// ([`super::SlamTable`]).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct SlamParams {
     /// Initial inverse depth of a new point, m⁻¹ (seed: Dala 0.1, Ressac 0.025).
     pub rho_init: f64,
@@ -24,11 +28,14 @@ pub struct SlamParams {
     /// Deletion: searched at least this often and found in fewer than half.
     pub min_searches: u32,
     /// The team's reference robot, whose first sub-map is the team's frame (seed Section V:
-    /// Dala's); `None`: this robot's own.
+    /// Dala's); `None`: this robot's own. The scenario's to decide, not a robot file's.
+    #[serde(skip)]
     pub reference_robot: Option<String>,
     /// The systematic drift of a sub-map's relative transform, per metre of it.
     pub edge_drift: EdgeDrift,
-    /// Events and the radio on (`false`: open loop, the chain of sub-maps only).
+    /// Events and the radio on (`false`: open loop, the chain of sub-maps only). The
+    /// run's to decide (`hetsim run --open-loop`), not a robot file's.
+    #[serde(skip)]
     pub cooperative: bool,
     /// Least time between two rendezvous events with the same robot, seconds.
     pub rendezvous_period_s: f64,
@@ -139,7 +146,7 @@ impl SlamParams {
 ///
 /// Calibration (issue 17), in steps, on the full village's seeds 11 and 12 (recorded
 /// once, then replayed with each candidate: `hetsim replay --set
-/// models.<model>.slam.edge_drift_translation=[..]`); seeds 1 to 5 validate it
+/// models.<model>.slam.edge_drift.translation=[..]`); seeds 1 to 5 validate it
 /// (`results/village/`):
 ///
 /// 1. Each open-loop sub-map edge against the truth: the error `Log(z⁻¹ T)` of the estimated
@@ -166,7 +173,8 @@ impl SlamParams {
 ///    live runs of both seeds with those values (`results/village-calibration/step1-scale4/`),
 ///    squared error over variance 2.07 / 1.49 / 0.64 / 0.22 / 1.17 / 1.01, so x, y, pitch
 ///    and yaw were scaled by 1.44 / 1.22 / 1.08 / 1.004. Dala's values are from steps 1-2.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct EdgeDrift {
     /// Translation drift as a fraction of the distance, x, y, z.
     pub translation: [f64; 3],

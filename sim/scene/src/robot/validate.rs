@@ -11,7 +11,13 @@ impl RobotModel {
     pub fn validate(&self, c: &Checker, dt_secs: f64) -> Result<(), SceneError> {
         check_body(c, &self.body)?;
         // The SLAM's and the pilot's tables, by their own crates' rules.
-        crate::params::check(c, &["slam"], self.slam.rules())?;
+        let slam = self.slam_params().map_err(|e| {
+            let path: Vec<&str> = std::iter::once("slam")
+                .chain(e.path.iter().map(String::as_str))
+                .collect();
+            c.error_at(&path, e.given.as_deref().unwrap_or("(missing)"), e.message)
+        })?;
+        crate::params::check(c, &["slam"], slam.rules())?;
         crate::params::check(c, &["pilot"], self.pilot.rules(self.body.max_speed_mps))?;
         let mut names = BTreeSet::new();
         for (i, sensor) in self.sensors.iter().enumerate() {
