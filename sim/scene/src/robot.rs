@@ -132,10 +132,6 @@ fn unit_gain() -> f64 {
     1.0
 }
 
-fn default_tracked_model() -> String {
-    "ctbot".to_string()
-}
-
 /// Where a sensor sits on the body.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -396,9 +392,6 @@ pub enum Sensor {
         error_mean_m: f64,
         /// Standard deviation of the position error, metres (0.02 in the seed).
         error_std_m: f64,
-        /// Robot model the tracker follows (the children's orange hats).
-        #[serde(default = "default_tracked_model")]
-        tracks_model: String,
     },
 }
 

@@ -29,8 +29,8 @@ use rand_distr::{Distribution, StandardNormal};
 pub(crate) struct Team {
     /// Robot names, in scenario order.
     pub names: Vec<String>,
-    /// Robot model names, in scenario order.
-    pub models: Vec<String>,
+    /// Whether each robot wears the tracker's orange hat (its robot file's `body.hat`).
+    pub hats: Vec<bool>,
     /// Body heights, metres.
     pub heights: Vec<f64>,
 }
@@ -145,13 +145,11 @@ pub(crate) fn model_of(spec: &Sensor, rng: &mut SimRng) -> Option<Box<dyn Model>
             range_m,
             error_mean_m,
             error_std_m,
-            tracks_model,
             ..
         } => Box::new(child_tracker::ChildTracker {
             range_m: *range_m,
             error_mean_m: *error_mean_m,
             error_std_m: *error_std_m,
-            tracks_model: tracks_model.clone(),
         }),
         Sensor::Rendezvous {
             range_m,

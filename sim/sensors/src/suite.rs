@@ -98,7 +98,7 @@ impl SensorSuite {
             sensors,
             team: Team {
                 names: robots.iter().map(|r| r.spec.name.clone()).collect(),
-                models: robots.iter().map(|r| r.spec.model.clone()).collect(),
+                hats: robots.iter().map(|r| r.model.body.hat).collect(),
                 heights: robots.iter().map(|r| r.model.body.height_m).collect(),
             },
             clock,

@@ -1,5 +1,5 @@
 //! A parent's child tracker (seed 002's hat tracking, emulated): the floor position of every
-//! tracked robot within range and in sight, with an error of random direction and a normally
+//! robot wearing the orange hat (`body.hat`) within range and in sight, with an error of random direction and a normally
 //! distributed size, in the parent's heading frame.
 
 use super::{At, Model};
@@ -15,8 +15,6 @@ pub(crate) struct ChildTracker {
     pub range_m: f64,
     pub error_mean_m: f64,
     pub error_std_m: f64,
-    /// The robot model it follows, as the robot file declares.
-    pub tracks_model: String,
 }
 
 impl Model for ChildTracker {
@@ -26,7 +24,7 @@ impl Model for ChildTracker {
         let mut tracks = Vec::new();
         let error = Normal::new(self.error_mean_m, self.error_std_m).expect("validated std >= 0");
         for other in 0..team.names.len() {
-            if other == at.robot || team.models[other] != self.tracks_model {
+            if other == at.robot || !team.hats[other] {
                 continue;
             }
             let p = at.physics.pose(other).translation.vector;
