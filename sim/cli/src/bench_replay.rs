@@ -40,6 +40,8 @@ pub fn replay(scenario: &Path, sim_secs: f64, out: Option<&Path>) -> Result<Figu
             open_loop: false,
             quiet: false,
             memory: Some(&trace),
+            // The benchmark's own folder, remade by each benchmark run.
+            replace: true,
         },
     )?;
     let live = Phase {

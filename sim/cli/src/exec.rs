@@ -1,6 +1,7 @@
 //! Running one scenario and writing its results: `hetsim run` and `hetsim frames`.
 
 use anyhow::{Context, Result};
+use hetsim_core::lock::FolderLock;
 use hetsim_io::record::{RecordEncoding, Recorder};
 use hetsim_io::FrameDump;
 use hetsim_render::RenderOptions;
@@ -28,6 +29,19 @@ pub struct Job<'a> {
     pub quiet: bool,
     /// Where to append (sim seconds, resident memory in MiB) at each progress report.
     pub memory: Option<&'a MemoryTrace>,
+    /// Replace another run's results in `out` (otherwise refused; the same run's are
+    /// rewritten).
+    pub replace: bool,
+}
+
+/// Claims the results folder `out` for `scenario`'s run before it starts: refused while
+/// another process writes it ([`FolderLock`]) or when it holds another run's results and
+/// `replace` is not given ([`hetsim_eval::results::check_destination`]), so that neither is
+/// found out only when a long run ends. The claim is released when dropped.
+pub fn claim(out: &Path, scenario: &Scenario, replace: bool) -> Result<FolderLock> {
+    let lock = FolderLock::take(out)?;
+    hetsim_eval::results::check_destination(out, scenario, replace)?;
+    Ok(lock)
 }
 
 /// A run's resident memory against sim time, sampled at each progress report.
@@ -86,7 +100,7 @@ pub fn frames(
     (from, to): (f64, f64),
     cameras: Option<String>,
     seed: Option<u64>,
-    out: Option<PathBuf>,
+    (out, replace): (Option<PathBuf>, bool),
     render: RenderOptions,
 ) -> Result<()> {
     anyhow::ensure!(
@@ -126,6 +140,7 @@ pub fn frames(
             open_loop: false,
             quiet: false,
             memory: None,
+            replace,
         },
     )
 }
@@ -146,6 +161,10 @@ pub fn run_scenario(loaded: &Scenario, job: &Job<'_>) -> Result<hetsim_eval::Run
     } else {
         run_progress_bar(&loaded.file.name)
     };
+    let _claim = job
+        .out
+        .map(|out| claim(out, loaded, job.replace))
+        .transpose()?;
     let start = crate::bench::wall_clock();
     let clock = loaded.clock;
     let mut recorder = job
@@ -226,6 +245,7 @@ pub fn run_scenario(loaded: &Scenario, job: &Job<'_>) -> Result<hetsim_eval::Run
             job.out,
             &timing,
             dumper.is_some().then_some(staging.as_path()),
+            job.replace,
         )
         .context("writing results")?;
         anyhow::Ok(files)

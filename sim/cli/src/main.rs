@@ -40,6 +40,10 @@ enum Cmd {
         /// Results directory (default: results/runs/<name>-seed<seed>-<digest8>).
         #[arg(long)]
         out: Option<PathBuf>,
+        /// Replace the results of another run in --out (by default refused; the same run,
+        /// same files, settings, seed, duration and build, is always rewritten).
+        #[arg(long)]
+        force: bool,
         /// Also record every message, command and ground-truth pose to this MCAP file
         /// (ROS 2: CDR messages, ros2msg schemas).
         #[arg(long)]
@@ -85,6 +89,10 @@ enum Cmd {
         /// Output folder (default: results/runs/<name>-seed<seed>-frames-<from>-<to>).
         #[arg(long)]
         out: Option<PathBuf>,
+        /// Replace the results of another run in --out (by default refused; the same run,
+        /// same files, settings, seed, duration and build, is always rewritten).
+        #[arg(long)]
+        force: bool,
         /// Renderer backend: vulkan, gl or any (default: HETSIM_BACKEND, else any).
         #[arg(long)]
         backend: Option<String>,
@@ -127,6 +135,10 @@ enum Cmd {
         /// Results directory (default: results/runs/replay-<recording name>).
         #[arg(long)]
         out: Option<PathBuf>,
+        /// Replace the results of another run in --out (by default refused; the same run,
+        /// same files, settings, seed, duration and build, is always rewritten).
+        #[arg(long)]
+        force: bool,
         /// Change a setting before replaying, e.g. `--set robots.dala.slam.sigma_px=1.5` or
         /// `--set models.ressac.slam.lines=false` (repeatable; values in TOML syntax).
         #[arg(long)]
@@ -262,6 +274,7 @@ fn real_main() -> Result<()> {
             seed,
             duration,
             out,
+            force,
             record,
             record_encoding,
             dump_frames,
@@ -289,6 +302,7 @@ fn real_main() -> Result<()> {
                     open_loop,
                     quiet: false,
                     memory: None,
+                    replace: force,
                 },
             )?;
         }
@@ -299,6 +313,7 @@ fn real_main() -> Result<()> {
             cameras,
             seed,
             out,
+            force,
             backend,
             adapter,
         } => exec::frames(
@@ -306,7 +321,7 @@ fn real_main() -> Result<()> {
             (from, to),
             cameras,
             seed,
-            out,
+            (out, force),
             render_options(backend, adapter),
         )?,
         Cmd::Localize {
@@ -320,6 +335,7 @@ fn real_main() -> Result<()> {
             source,
             robots,
             out,
+            force,
             set,
             scenario,
             duration,
@@ -330,6 +346,7 @@ fn real_main() -> Result<()> {
                 source,
                 robots,
                 out,
+                replace: force,
                 set,
                 scenario,
                 duration,

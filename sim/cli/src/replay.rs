@@ -16,6 +16,8 @@ pub struct ReplayArgs<'a> {
     pub robots: Vec<String>,
     /// Results folder (default: results/runs/replay-<source name>).
     pub out: Option<PathBuf>,
+    /// Replace the results of another run there.
+    pub replace: bool,
     /// `key=value` settings written into the scenario (`robots.<robot>.<field>`,
     /// `models.<model>.<field>`, scenario fields), values in TOML syntax.
     pub set: Vec<String>,
@@ -77,6 +79,8 @@ pub fn replay(args: &ReplayArgs<'_>) -> Result<hetsim_eval::RunFiles> {
         .map(|r| r.spec.name.as_str())
         .collect();
     check_robots(&args.robots, &names)?;
+    let out = out_dir(args);
+    let _claim = crate::exec::claim(&out, &scenario, args.replace)?;
     let stacks = replayed_stacks(&scenario, open_loop, &names, &args.robots);
     let output = replay_with_progress(args, &scenario, stacks, recording.as_mut())?;
     let metrics = hetsim_eval::Metrics::compute(&scenario, &output)?;
@@ -89,9 +93,16 @@ pub fn replay(args: &ReplayArgs<'_>) -> Result<hetsim_eval::RunFiles> {
         threads: None,
         wall_secs: wall,
     };
-    let out = out_dir(args);
-    let files = hetsim_eval::write_run(&scenario, output, &metrics, Some(&out), &timing, None)
-        .context("writing results")?;
+    let files = hetsim_eval::write_run(
+        &scenario,
+        output,
+        &metrics,
+        Some(&out),
+        &timing,
+        None,
+        args.replace,
+    )
+    .context("writing results")?;
     Ok(files)
 }
 

@@ -230,6 +230,8 @@ fn whole_run(
             source: recording.clone(),
             robots: Vec::new(),
             out: Some(dir.to_path_buf()),
+            // Only a folder without results is replayed into (the sweep resumes the rest).
+            replace: false,
             set,
             scenario: None,
             duration: sweep.file.duration_secs,
@@ -255,6 +257,8 @@ fn whole_run(
                 open_loop: false,
                 quiet: true,
                 memory: None,
+                // Only a folder without results is run into (the sweep resumes the rest).
+                replace: false,
             },
         )
         .map_err(|e| sweep.run_error(run, format!("{e:#}")))?;
@@ -414,6 +418,8 @@ pub fn localize(
                     open_loop: false,
                     quiet: false,
                     memory: None,
+                    // The study's own folder: a run of another build is made again over it.
+                    replace: true,
                 },
             )?;
         }

@@ -14,6 +14,7 @@
 mod clock;
 mod digest;
 pub mod files;
+pub mod lock;
 mod streams;
 
 pub use clock::{SimClock, Tick};

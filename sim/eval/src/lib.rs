@@ -70,6 +70,21 @@ pub enum EvalError {
     /// The results folder already exists and is not a hetsim results folder.
     #[error("{}: exists and is not a hetsim results directory (no manifest.json); choose another --out or remove it", .0.display())]
     Occupied(PathBuf),
+    /// The results folder holds the results of another run.
+    #[error("{}: holds the results of another run ({scenario}, seed {seed}, digest {digest}; this run differs in its {differs}); give --force to replace them, or choose another --out", dir.display())]
+    OtherRun {
+        /// The folder.
+        dir: PathBuf,
+        /// The scenario file of the run it holds.
+        scenario: String,
+        /// That run's seed.
+        seed: u64,
+        /// That run's digest.
+        digest: String,
+        /// The first thing that differs (`seed`, `duration`, `tick`, `files`, `settings`,
+        /// `build`).
+        differs: &'static str,
+    },
     /// Something the experiment needs is missing from the scenario.
     #[error("{0}")]
     Scenario(String),

@@ -98,10 +98,7 @@ impl Manifest {
             hetsim_version: env!("CARGO_PKG_VERSION").to_string(),
             oracles: oracles(scenario),
             records: result.digest.records(),
-            resolved: serde_json::json!({
-                "scenario": scenario.file,
-                "robots": scenario.robots.iter().map(|r| serde_json::json!({"name": r.spec.name, "model": r.model})).collect::<Vec<_>>(),
-            }),
+            resolved: resolved(scenario),
             scenario: scenario.path.display().to_string(),
             seed: scenario.seed,
             stacks: result
@@ -112,6 +109,28 @@ impl Manifest {
                     robot: r.name.clone(),
                 })
                 .collect(),
+        }
+    }
+
+    /// What differs between the run this manifest describes and a run of `scenario` by this
+    /// build (`seed`, `duration`, `tick`, `files`, `settings`, `build`); `None`: the same run
+    /// (the same files by content, resolved settings, seed, duration, tick and build), which
+    /// computes the same bytes and may be written again.
+    pub fn differs_from(&self, scenario: &Scenario) -> Option<&'static str> {
+        if self.seed != scenario.seed {
+            Some("seed")
+        } else if self.duration_secs != scenario.duration_secs {
+            Some("duration")
+        } else if self.dt_secs != scenario.clock.dt_secs() {
+            Some("tick")
+        } else if self.files_sha256 != scenario.file_hashes {
+            Some("files")
+        } else if self.resolved != resolved(scenario) {
+            Some("settings")
+        } else if self.build_sha256 != build_sha256() {
+            Some("build")
+        } else {
+            None
         }
     }
 
@@ -221,5 +240,14 @@ pub fn build_sha256() -> &'static str {
                 .collect())
         };
         hash().unwrap_or_else(|_| "unknown".into())
+    })
+}
+
+/// The scenario as the run resolved it (its file with overrides and settings applied, and
+/// each robot's model), as the manifest records it.
+fn resolved(scenario: &Scenario) -> serde_json::Value {
+    serde_json::json!({
+        "scenario": scenario.file,
+        "robots": scenario.robots.iter().map(|r| serde_json::json!({"name": r.spec.name, "model": r.model})).collect::<Vec<_>>(),
     })
 }

@@ -51,11 +51,40 @@ fn maps(output: &RunOutput) -> MapParts {
     (points, segments)
 }
 
+/// Whether `dir` may receive `scenario`'s results: it does not exist, or it holds the results
+/// of the same run ([`crate::manifest::Manifest::differs_from`]), or `replace` says another
+/// run's may be replaced. A folder that is not a results folder (no `manifest.json`) is
+/// never replaced. Callers check before a run starts, so that a long run is not made for
+/// nothing; [`write_run`] checks again before it writes.
+pub fn check_destination(dir: &Path, scenario: &Scenario, replace: bool) -> Result<(), EvalError> {
+    if !dir.exists() {
+        return Ok(());
+    }
+    if !dir.join("manifest.json").is_file() {
+        return Err(EvalError::Occupied(dir.to_path_buf()));
+    }
+    if replace {
+        return Ok(());
+    }
+    let there = crate::manifest::Manifest::read(dir)?;
+    match there.differs_from(scenario) {
+        None => Ok(()),
+        Some(differs) => Err(EvalError::OtherRun {
+            dir: dir.to_path_buf(),
+            scenario: there.scenario,
+            seed: there.seed,
+            digest: there.digest.chars().take(16).collect(),
+            differs,
+        }),
+    }
+}
+
 /// Writes a run's results to `dest` (or to `results/runs/<name>-seed<seed>-<digest8>` when
 /// `dest` is `None`), adding every output file to the digest first, and returns the directory
 /// and final digest. `timing` is written to `timing.json` outside the digest. `frames`, a
 /// folder of dumped camera frames staged during the run, is moved in as `frames/` (the images
-/// are in the digest as messages already).
+/// are in the digest as messages already). A `dest` holding another run's results is
+/// refused unless `replace` ([`check_destination`]).
 pub fn write_run(
     scenario: &Scenario,
     mut result: RunOutput,
@@ -63,6 +92,7 @@ pub fn write_run(
     dest: Option<&Path>,
     timing: &crate::manifest::Timing,
     frames: Option<&Path>,
+    replace: bool,
 ) -> Result<RunFiles, EvalError> {
     let mut files = files(scenario, &result, metrics);
     for (name, bytes) in &files {
@@ -87,9 +117,7 @@ pub fn write_run(
             &digest[..8]
         )),
     };
-    if dir.exists() && !dir.join("manifest.json").is_file() {
-        return Err(EvalError::Occupied(dir));
-    }
+    check_destination(&dir, scenario, replace)?;
     write_dir_atomic(&dir, &files, |tmp| {
         if let Some(staged) = frames.filter(|f| f.exists()) {
             std::fs::rename(staged, tmp.join("frames")).map_err(FileError::at(staged))?;

@@ -33,6 +33,7 @@ fn digest_of(scenario: &str, seed: u64, secs: f64) -> String {
             wall_secs: secs,
         },
         None,
+        false,
     )
     .unwrap()
     .digest

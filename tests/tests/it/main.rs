@@ -28,6 +28,7 @@ mod record;
 mod render;
 mod replay;
 mod replay_fuzz;
+mod results_folder;
 mod sensors;
 mod shared;
 mod slam;
