@@ -165,6 +165,10 @@ pub fn run_scenario(loaded: &Scenario, job: &Job<'_>) -> Result<hetsim_eval::Run
         .out
         .map(|out| claim(out, loaded, job.replace))
         .transpose()?;
+    // Without rendering a recording holds no images, and the estimate is of images.
+    if let (Some((path, RecordEncoding::Ros2)), Some(_)) = (job.record, &job.render) {
+        check_recording_fits(path, loaded, job.replace)?;
+    }
     let start = crate::bench::wall_clock();
     let clock = loaded.clock;
     let mut recorder = job
@@ -262,6 +266,27 @@ pub fn run_scenario(loaded: &Scenario, job: &Job<'_>) -> Result<hetsim_eval::Run
         }
     };
     Ok(files)
+}
+
+/// Refuses, before the run, a recording whose estimated size
+/// ([`hetsim_io::record::estimated_bytes`]) exceeds the free space where it goes, unless
+/// `force` (the estimate may be pessimistic for a scene that compresses well).
+fn check_recording_fits(path: &Path, loaded: &Scenario, force: bool) -> Result<()> {
+    use hetsim_core::files::{free_bytes, human_bytes};
+    let need = hetsim_io::record::estimated_bytes(loaded);
+    if let Some(free) = free_bytes(path) {
+        anyhow::ensure!(
+            force || need <= free,
+            "{}: the recording needs about {} (the cameras' images over {} s, compressed as a \
+             village minute compresses), and {} is free there; free space, record elsewhere, \
+             or give --force to try anyway",
+            path.display(),
+            human_bytes(need),
+            loaded.duration_secs,
+            human_bytes(free)
+        );
+    }
+    Ok(())
 }
 
 pub fn rayon_threads() -> usize {

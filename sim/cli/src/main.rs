@@ -41,7 +41,8 @@ enum Cmd {
         #[arg(long)]
         out: Option<PathBuf>,
         /// Replace the results of another run in --out (by default refused; the same run,
-        /// same files, settings, seed, duration and build, is always rewritten).
+        /// same files, settings, seed, duration and build, is always rewritten), and record
+        /// even where the recording's estimated size exceeds the free space.
         #[arg(long)]
         force: bool,
         /// Also record every message, command and ground-truth pose to this MCAP file

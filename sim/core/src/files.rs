@@ -30,6 +30,32 @@ impl FileError {
     }
 }
 
+/// Bytes an unprivileged writer may still write on the file system that holds `path` (or,
+/// where `path` does not exist yet, its nearest existing folder); `None` where the file
+/// system does not say.
+pub fn free_bytes(path: &Path) -> Option<u64> {
+    let mut at = path;
+    while !at.exists() {
+        at = match at.parent() {
+            Some(p) if !p.as_os_str().is_empty() => p,
+            _ => Path::new("."),
+        };
+    }
+    let fs = rustix::fs::statvfs(at).ok()?;
+    Some(fs.f_bavail.saturating_mul(fs.f_frsize))
+}
+
+/// `bytes` for people: `1.42 GB`, `300 kB` (decimal units, as `df -H` prints them).
+pub fn human_bytes(bytes: u64) -> String {
+    let b = bytes as f64;
+    match b {
+        b if b >= 1e9 => format!("{:.2} GB", b / 1e9),
+        b if b >= 1e6 => format!("{:.1} MB", b / 1e6),
+        b if b >= 1e3 => format!("{:.0} kB", b / 1e3),
+        b => format!("{b:.0} B"),
+    }
+}
+
 /// The folder a path lives in (`.` for a bare file name).
 fn folder_of(path: &Path) -> &Path {
     path.parent()

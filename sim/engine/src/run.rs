@@ -61,11 +61,11 @@ pub enum RunError {
     /// No renderer.
     #[error(transparent)]
     Render(#[from] RenderError),
-    /// Frames could not be written.
-    #[error("writing frames: {0}")]
+    /// Frames could not be written (the cause is the error's source, which `{:#}` prints).
+    #[error("writing frames")]
     Frames(#[source] SinkError),
-    /// The recording could not be written.
-    #[error("recording: {0}")]
+    /// The recording could not be written (the cause is the error's source).
+    #[error("recording")]
     Record(#[source] SinkError),
     /// A robot's software refused a message it was fed.
     #[error("robot {robot} refused a message: {error}")]

@@ -1,6 +1,7 @@
 //! A results folder is never silently replaced: `--out` naming another run's results is
 //! refused before the run starts, saying what is there and how to replace it; the same run
-//! is rewritten; a folder another live process is writing is refused, naming the process.
+//! is rewritten; a folder another live process is writing is refused, naming the process; a
+//! recording that cannot fit is refused before the run, and one that fills the disk says so.
 
 use hetsim_tests::hetsim;
 use std::path::Path;
@@ -110,4 +111,84 @@ fn a_folder_another_live_process_writes_is_refused_and_a_stale_claim_is_taken_ov
     );
     assert!(out.join("manifest.json").is_file());
     assert!(!lock.exists(), "released at the end");
+}
+
+/// A tmpfs of `size` mounted on a fresh folder, unmounted when dropped (the suite runs as
+/// root, as CI does: mounting needs it).
+struct SmallDisk {
+    dir: tempfile::TempDir,
+}
+
+impl SmallDisk {
+    fn new(size: &str) -> Self {
+        let dir = tempfile::tempdir().unwrap();
+        let mounted = std::process::Command::new("mount")
+            .args(["-t", "tmpfs", "-o", &format!("size={size}"), "tmpfs"])
+            .arg(dir.path())
+            .status()
+            .expect("mount runs");
+        assert!(mounted.success(), "mounting a {size} tmpfs needs root");
+        Self { dir }
+    }
+    fn path(&self) -> &Path {
+        self.dir.path()
+    }
+}
+
+impl Drop for SmallDisk {
+    fn drop(&mut self) {
+        let _ = std::process::Command::new("umount")
+            .arg(self.dir.path())
+            .status();
+    }
+}
+
+#[test]
+fn a_recording_that_cannot_fit_is_refused_first_and_a_full_disk_is_named_with_its_cause() {
+    let disk = SmallDisk::new("64k");
+    let results = tempfile::tempdir().unwrap();
+    let out = results.path().join("run");
+    let rec = disk.path().join("lab.mcap");
+    let record = |duration: &str, extra: &[&str]| {
+        let mut args = vec![
+            "run",
+            "scenarios/lab.toml",
+            "--duration",
+            duration,
+            "--record",
+            rec.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ];
+        args.extend(extra);
+        hetsim(&args, &[])
+    };
+    // Rendered, the lab's cameras need far more than 64 kB: refused before the run.
+    let refused = record("20", &[]);
+    let err = String::from_utf8_lossy(&refused.stderr);
+    assert!(!refused.status.success());
+    for said in [
+        "lab.mcap",
+        "the recording needs about",
+        "free there",
+        "--force",
+    ] {
+        assert!(err.contains(said), "{said:?} in: {err}");
+    }
+    // Not rendered, it holds no images and starts, then fills the disk: the cause and the
+    // path, not the writer's later refusals, and nothing left behind.
+    let full = record("60", &["--no-render"]);
+    let err = String::from_utf8_lossy(&full.stderr);
+    assert!(!full.status.success());
+    for said in [
+        "lab.mcap.partial",
+        "No space left on device",
+        "free there now",
+    ] {
+        assert!(err.contains(said), "{said:?} in: {err}");
+    }
+    assert!(!err.contains("attempted another write"), "{err}");
+    assert_eq!(err.lines().count(), 1, "one line: {err}");
+    assert!(entries(disk.path()).is_empty(), "no partial recording");
+    assert!(entries(results.path()).is_empty(), "no results, no lock");
 }

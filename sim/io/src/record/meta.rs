@@ -94,15 +94,15 @@ impl Recorder {
         name: &str,
         metadata: BTreeMap<String, String>,
     ) -> Result<(), RecordError> {
-        self.writer
-            .write_metadata(&mcap::records::Metadata {
+        if self.failed.is_none() {
+            if let Err(e) = self.writer.write_metadata(&mcap::records::Metadata {
                 name: name.into(),
                 metadata,
-            })
-            .map_err(|source| RecordError::Mcap {
-                path: self.tmp.clone(),
-                source,
-            })
+            }) {
+                self.failed = Some(e);
+            }
+        }
+        self.first_failure()
     }
 }
 
