@@ -41,6 +41,18 @@ pub enum RenderError {
         /// Why.
         reason: String,
     },
+    /// A mesh is larger than one buffer of the device may be.
+    #[error("the world's {what} mesh needs a {bytes}-byte buffer and the adapter {adapter} allows {max}: make it about {:.1} times coarser (a village's terrain_cell_m), or run with --no-render", (*.bytes as f64 / *.max as f64).sqrt())]
+    TooLarge {
+        /// `terrain` or `objects`.
+        what: String,
+        /// Bytes the buffer would need.
+        bytes: u64,
+        /// The device's largest buffer.
+        max: u64,
+        /// Adapter name.
+        adapter: String,
+    },
 }
 
 /// Which adapter renders (recorded in the manifest).
@@ -251,6 +263,21 @@ impl Renderer {
         let layout = bind_group_layout(&device);
         let pipelines = pipelines(&device, &layout);
         let mesh = world_mesh(world);
+        // A buffer over the device's limit is a validation error (a panic) in wgpu: say
+        // which mesh and what to change instead.
+        let max = device.limits().max_buffer_size;
+        for (what, m) in [("terrain", &mesh.terrain), ("objects", &mesh.objects)] {
+            let bytes = std::mem::size_of_val(m.vertices.as_slice())
+                .max(std::mem::size_of_val(m.indices.as_slice())) as u64;
+            if bytes > max {
+                return Err(RenderError::TooLarge {
+                    what: what.to_string(),
+                    bytes,
+                    max,
+                    adapter: info.name.clone(),
+                });
+            }
+        }
         let textures = upload_materials(&device, &queue, mesh.terrain_area);
         let sampler = device.create_sampler(&wgpu::SamplerDescriptor {
             label: Some("materials"),

@@ -375,3 +375,35 @@ fn reference_views_match_their_golden_images() {
     }
     assert!(failures.is_empty(), "{failures:?}; see {}", out.display());
 }
+
+#[test]
+fn a_terrain_larger_than_a_device_buffer_is_refused_naming_the_mesh_and_the_fix() {
+    // 2000 m at 1 m cells: 4e6 height samples, a vertex buffer over the 256 MiB a wgpu
+    // device allows by default (which was a validation panic).
+    let text = std::fs::read_to_string(repo().join("scenarios/village.toml"))
+        .unwrap()
+        .replace("size_m = 800.0", "size_m = 2000.0")
+        .replace("terrain_cell_m = 4.0", "terrain_cell_m = 1.0");
+    let s = hetsim_scene::load_scenario_text(
+        &repo().join("scenarios/village.toml"),
+        text,
+        &LoadOptions::default(),
+    )
+    .unwrap();
+    let Err(e) = Renderer::new(&s.world, &RenderOptions::default()) else {
+        panic!("a {}-sample terrain was accepted", 2001 * 2001)
+    };
+    let said = e.to_string();
+    let hetsim_render::RenderError::TooLarge {
+        what, bytes, max, ..
+    } = e
+    else {
+        panic!("expected TooLarge, got {said}")
+    };
+    assert_eq!(what, "terrain");
+    assert!(bytes > max, "{said}");
+    assert!(
+        said.contains("terrain_cell_m") && said.contains("--no-render"),
+        "{said}"
+    );
+}
