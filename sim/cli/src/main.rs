@@ -23,6 +23,35 @@ use std::process::ExitCode;
 struct Cli {
     #[command(subcommand)]
     command: Cmd,
+    /// The memory a world may need (e.g. 8G, 500M; default: this machine's available
+    /// memory): a village whose terrain needs more is refused before it is built.
+    #[arg(long, global = true, value_parser = parse_bytes)]
+    max_memory: Option<u64>,
+}
+
+/// `8G`, `500M`, `64k` or a plain number of bytes (decimal units).
+fn parse_bytes(s: &str) -> Result<u64, String> {
+    let t = s.trim();
+    let (digits, unit) = match t.char_indices().find(|(_, c)| c.is_ascii_alphabetic()) {
+        Some((i, _)) => (&t[..i], &t[i..]),
+        None => (t, ""),
+    };
+    let scale = match unit.to_ascii_lowercase().as_str() {
+        "" | "b" => 1.0,
+        "k" | "kb" => 1e3,
+        "m" | "mb" => 1e6,
+        "g" | "gb" => 1e9,
+        "t" | "tb" => 1e12,
+        _ => return Err(format!("{s}: expected bytes, e.g. 8G, 500M or 64k")),
+    };
+    let n: f64 = digits
+        .trim()
+        .parse()
+        .map_err(|_| format!("{s}: expected bytes, e.g. 8G, 500M or 64k"))?;
+    if !(n.is_finite() && n > 0.0) {
+        return Err(format!("{s}: expected a positive size"));
+    }
+    Ok((n * scale) as u64)
 }
 
 #[derive(Subcommand)]
@@ -269,7 +298,11 @@ fn quiet_display_probe() {
 }
 
 fn real_main() -> Result<()> {
-    match Cli::parse().command {
+    let cli = Cli::parse();
+    if let Some(bytes) = cli.max_memory {
+        hetsim_scene::budget::set_max_memory(bytes);
+    }
+    match cli.command {
         Cmd::Run {
             scenario,
             seed,

@@ -7,6 +7,7 @@
 //! starts inside the world and outside every obstacle. Every refusal names the file, the line,
 //! the field, the bad value and what is allowed; nothing is run on a refused scenario.
 
+pub mod budget;
 mod check;
 mod error;
 mod given;

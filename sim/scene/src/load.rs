@@ -180,6 +180,7 @@ fn load_source(source: Source, options: &LoadOptions) -> Result<Scenario, SceneE
     }
     check_missions(&c, &file, &robots)?;
 
+    check_world_fits(&c, &file)?;
     let seed = options.seed.unwrap_or(file.seed);
     let streams = Streams::new(seed);
     let keep = keep_clear(&file, &robots);
@@ -318,6 +319,36 @@ fn lookup_mut<'a>(table: &'a mut toml::Table, dotted: &str) -> Option<&'a mut to
         current = child(current, seg, k + 1 == rest.len())?;
     }
     Some(current)
+}
+
+/// Refuses, before it is built, a village whose terrain alone needs more memory than the
+/// bound ([`crate::budget`]).
+fn check_world_fits(c: &Checker, file: &ScenarioFile) -> Result<(), SceneError> {
+    use crate::budget::{human, memory_bound, terrain_samples, village_bytes};
+    if file.world.kind != WorldKind::Village {
+        return Ok(());
+    }
+    let v = file.village();
+    let need = village_bytes(v.size_m, v.terrain_cell_m);
+    match memory_bound() {
+        Some((bound, from)) if need > bound as f64 => Err(c.error_at(
+            &["world", "village", "terrain_cell_m"],
+            v.terrain_cell_m,
+            format!(
+                "a terrain that fits in memory: size_m = {} at terrain_cell_m = {} is {:.2e} \
+                 height samples, about {} at {} bytes each, and {} is {} (a larger \
+                 terrain_cell_m or a smaller size_m; --max-memory to declare another bound)",
+                v.size_m,
+                v.terrain_cell_m,
+                terrain_samples(v.size_m, v.terrain_cell_m),
+                human(need),
+                crate::budget::TERRAIN_BYTES_PER_SAMPLE,
+                from,
+                human(bound as f64)
+            ),
+        )),
+        _ => Ok(()),
+    }
 }
 
 fn check_missions(

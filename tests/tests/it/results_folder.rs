@@ -192,3 +192,41 @@ fn a_recording_that_cannot_fit_is_refused_first_and_a_full_disk_is_named_with_it
     assert!(entries(disk.path()).is_empty(), "no partial recording");
     assert!(entries(results.path()).is_empty(), "no results, no lock");
 }
+
+#[test]
+fn a_village_beyond_the_memory_bound_is_refused_before_it_is_built() {
+    // 5000 m at 0.5 m cells: 1e8 height samples, about 1.7 GB (the largest village the
+    // ranges allow), refused under a declared 1 GB bound before the terrain
+    // is generated (the loader checks the estimate first: `sim/scene/src/load.rs`).
+    let dir = tempfile::tempdir().unwrap();
+    let models = hetsim_tests::repo().join("robots/models");
+    let text = std::fs::read_to_string(hetsim_tests::repo().join("scenarios/village.toml"))
+        .unwrap()
+        .replace("size_m = 800.0", "size_m = 5000.0")
+        .replace("terrain_cell_m = 4.0", "terrain_cell_m = 0.5")
+        .replacen(
+            "schema_version = 1\n",
+            &format!(
+                "schema_version = 1\nmodels_dir = {:?}\n",
+                models.display().to_string()
+            ),
+            1,
+        );
+    let path = dir.path().join("big.toml");
+    std::fs::write(&path, text).unwrap();
+    let refused = hetsim(
+        &["validate", path.to_str().unwrap(), "--max-memory", "1G"],
+        &[],
+    );
+    let err = String::from_utf8_lossy(&refused.stderr);
+    assert!(!refused.status.success(), "{err}");
+    for said in [
+        "big.toml:",
+        "world.village.terrain_cell_m",
+        "1.00e8 height samples",
+        "1.7 GB",
+        "--max-memory is 1.0 GB",
+    ] {
+        assert!(err.contains(said), "{said:?} in: {err}");
+    }
+}
