@@ -42,6 +42,7 @@ pub fn replay(scenario: &Path, sim_secs: f64, out: Option<&Path>) -> Result<Figu
             memory: Some(&trace),
             // The benchmark's own folder, remade by each benchmark run.
             replace: true,
+            record_anyway: false,
         },
     )?;
     let live = Phase {

@@ -32,6 +32,8 @@ pub struct Job<'a> {
     /// Replace another run's results in `out` (otherwise refused; the same run's are
     /// rewritten).
     pub replace: bool,
+    /// Record even where the recording's estimated size exceeds the free space.
+    pub record_anyway: bool,
 }
 
 /// Claims the results folder `out` for `scenario`'s run before it starts: refused while
@@ -141,6 +143,7 @@ pub fn frames(
             quiet: false,
             memory: None,
             replace,
+            record_anyway: false,
         },
     )
 }
@@ -167,7 +170,7 @@ pub fn run_scenario(loaded: &Scenario, job: &Job<'_>) -> Result<hetsim_eval::Run
         .transpose()?;
     // Without rendering a recording holds no images, and the estimate is of images.
     if let (Some((path, RecordEncoding::Ros2)), Some(_)) = (job.record, &job.render) {
-        check_recording_fits(path, loaded, job.replace)?;
+        check_recording_fits(path, loaded, job.record_anyway)?;
     }
     let start = crate::bench::wall_clock();
     let clock = loaded.clock;

@@ -337,6 +337,7 @@ fn real_main() -> Result<()> {
                     quiet: false,
                     memory: None,
                     replace: force,
+                    record_anyway: force,
                 },
             )?;
         }

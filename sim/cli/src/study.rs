@@ -259,6 +259,7 @@ fn whole_run(
                 memory: None,
                 // Only a folder without results is run into (the sweep resumes the rest).
                 replace: false,
+                record_anyway: false,
             },
         )
         .map_err(|e| sweep.run_error(run, format!("{e:#}")))?;
@@ -420,6 +421,7 @@ pub fn localize(
                     memory: None,
                     // The study's own folder: a run of another build is made again over it.
                     replace: true,
+                    record_anyway: false,
                 },
             )?;
         }

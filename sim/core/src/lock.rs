@@ -19,7 +19,7 @@ pub struct FolderLock {
 #[derive(Debug, thiserror::Error)]
 pub enum LockError {
     /// Another live process holds it.
-    #[error("{}: being written by process {pid} on {host} (lock {}); wait for it to finish, or choose another folder", folder.display(), lock.display())]
+    #[error("{}: being written by process {pid} on {host} (lock {}); wait for it to finish, choose another folder, or, if that process is gone, remove the lock", folder.display(), lock.display())]
     Held {
         /// The folder.
         folder: PathBuf,
@@ -58,18 +58,28 @@ impl FolderLock {
             .unwrap_or(Path::new("."));
         std::fs::create_dir_all(parent).map_err(FileError::at(parent))?;
         let path = parent.join(format!("{leaf}.lock"));
-        let me = format!("{} {}\n", std::process::id(), host_name());
+        // The claim is written whole into a file of this process's own, then linked into
+        // place: the link exists with its content or not at all, so no other process reads
+        // a lock half-written (and takes it for a stale one).
+        let mine = parent.join(format!(".{leaf}.lock-{}", std::process::id()));
+        std::fs::File::create(&mine)
+            .and_then(|mut f| {
+                writeln!(f, "{} {}", std::process::id(), host_name())?;
+                f.sync_all()
+            })
+            .map_err(FileError::at(&mine))?;
+        let claimed = Self::link(&mine, &path, folder);
+        let _ = std::fs::remove_file(&mine);
+        claimed
+    }
+
+    fn link(mine: &Path, path: &Path, folder: &Path) -> Result<Self, LockError> {
+        use crate::files::FileError;
+        let path = path.to_path_buf();
         // Twice at most: once more after removing a stale lock.
         for _ in 0..2 {
-            match std::fs::OpenOptions::new()
-                .write(true)
-                .create_new(true)
-                .open(&path)
-            {
-                Ok(mut f) => {
-                    f.write_all(me.as_bytes()).map_err(FileError::at(&path))?;
-                    return Ok(Self { path });
-                }
+            match std::fs::hard_link(mine, &path) {
+                Ok(()) => return Ok(Self { path }),
                 Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => {
                     let text = std::fs::read_to_string(&path).unwrap_or_default();
                     let mut words = text.split_whitespace();

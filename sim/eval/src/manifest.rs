@@ -123,9 +123,9 @@ impl Manifest {
             Some("duration")
         } else if self.dt_secs != scenario.clock.dt_secs() {
             Some("tick")
-        } else if self.files_sha256 != scenario.file_hashes {
+        } else if !same_contents(&self.files_sha256, &scenario.file_hashes) {
             Some("files")
-        } else if self.resolved != resolved(scenario) {
+        } else if self.resolved != written_back(resolved(scenario)) {
             Some("settings")
         } else if self.build_sha256 != build_sha256() {
             Some("build")
@@ -250,4 +250,24 @@ fn resolved(scenario: &Scenario) -> serde_json::Value {
         "scenario": scenario.file,
         "robots": scenario.robots.iter().map(|r| serde_json::json!({"name": r.spec.name, "model": r.model})).collect::<Vec<_>>(),
     })
+}
+
+/// Whether two runs read files of the same contents (the keys are paths as typed, which
+/// differ between `./scenarios/lab.toml` and `scenarios/lab.toml`).
+fn same_contents(a: &BTreeMap<String, String>, b: &BTreeMap<String, String>) -> bool {
+    let hashes = |m: &BTreeMap<String, String>| {
+        let mut v: Vec<String> = m.values().cloned().collect();
+        v.sort();
+        v
+    };
+    hashes(a) == hashes(b)
+}
+
+/// `value` as a manifest read back from its bytes holds it (so that a float compares as the
+/// parser reads it, not as it was computed).
+fn written_back(value: serde_json::Value) -> serde_json::Value {
+    serde_json::to_vec(&value)
+        .ok()
+        .and_then(|bytes| serde_json::from_slice(&bytes).ok())
+        .unwrap_or(value)
 }

@@ -117,7 +117,23 @@ pub fn write_run(
             &digest[..8]
         )),
     };
-    check_destination(&dir, scenario, replace)?;
+    // The same run computes the same bytes: a folder whose digest differs holds another run
+    // even where the scenario matched (a run option such as --open-loop or --no-render
+    // changes the bytes, not the scenario), and is replaced only when asked.
+    if !replace && dir.join("manifest.json").is_file() {
+        let there = crate::manifest::Manifest::read(&dir)?;
+        if there.digest != digest {
+            return Err(EvalError::OtherRun {
+                dir: dir.clone(),
+                scenario: there.scenario,
+                seed: there.seed,
+                digest: there.digest.chars().take(16).collect(),
+                differs: "digest (a run option: --open-loop, --no-render, frames)",
+            });
+        }
+    } else {
+        check_destination(&dir, scenario, true)?;
+    }
     write_dir_atomic(&dir, &files, |tmp| {
         if let Some(staged) = frames.filter(|f| f.exists()) {
             std::fs::rename(staged, tmp.join("frames")).map_err(FileError::at(staged))?;

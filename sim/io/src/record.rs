@@ -68,7 +68,7 @@ pub enum RecordError {
     },
     /// A message could not be written (a full disk): the first failure, not the writer's
     /// later refusals.
-    #[error("{}: writing the recording failed after {}, with {} free there now", path.display(), hetsim_core::files::human_bytes(*.written), .free.map_or("unknown".to_string(), hetsim_core::files::human_bytes))]
+    #[error("{}: writing the recording failed after {} of messages, with {} free there now", path.display(), hetsim_core::files::human_bytes(*.written), .free.map_or("unknown".to_string(), hetsim_core::files::human_bytes))]
     Write {
         /// The file being written.
         path: PathBuf,
@@ -142,8 +142,10 @@ pub struct Recorder {
     path: PathBuf,
     /// Bytes of messages written.
     written: u64,
-    /// The first write that failed; nothing more is written after it.
+    /// The first write that failed, until reported.
     failed: Option<mcap::McapError>,
+    /// A write failed: nothing more is written.
+    broken: bool,
 }
 
 impl Recorder {
@@ -181,6 +183,7 @@ impl Recorder {
             path: path.to_path_buf(),
             written: 0,
             failed: None,
+            broken: false,
         })
     }
 
@@ -231,15 +234,12 @@ impl Recorder {
     /// (MCAP's log time: replay feeds a message at the tick it was received).
     fn write_bytes(&mut self, topic: &str, schema: &str, stamp_ns: u64, data: &[u8]) {
         *self.counts.entry(topic.to_string()).or_default() += 1;
-        if self.failed.is_some() {
+        if self.broken {
             return;
         }
         let channel = match self.channel(topic, schema) {
             Ok(c) => c,
-            Err(e) => {
-                self.failed = Some(e);
-                return;
-            }
+            Err(e) => return self.fail(e),
         };
         self.sequence += 1;
         let header = mcap::records::MessageHeader {
@@ -252,7 +252,7 @@ impl Recorder {
         // refuses every later write with a message of its own); the run goes on meanwhile.
         match self.writer.write_to_known_channel(&header, data) {
             Ok(()) => self.written += data.len() as u64,
-            Err(e) => self.failed = Some(e),
+            Err(e) => self.fail(e),
         }
     }
 
@@ -457,10 +457,24 @@ impl Recorder {
         &self.counts
     }
 
+    /// Keeps the first failure; nothing is written after it.
+    fn fail(&mut self, e: mcap::McapError) {
+        if !self.broken {
+            self.broken = true;
+            self.failed = Some(e);
+        }
+    }
+
     /// The first write that failed, as the error to report (once: the writer refuses every
     /// later write, and those refusals say nothing of the cause).
     fn first_failure(&mut self) -> Result<(), RecordError> {
         match self.failed.take() {
+            None if self.broken => Err(RecordError::Mcap {
+                path: self.tmp.clone(),
+                source: mcap::McapError::Io(std::io::Error::other(
+                    "an earlier write failed (reported above)",
+                )),
+            }),
             None => Ok(()),
             Some(source) => Err(RecordError::Write {
                 free: hetsim_core::files::free_bytes(&self.tmp),

@@ -42,7 +42,7 @@ pub enum RenderError {
         reason: String,
     },
     /// A mesh is larger than one buffer of the device may be.
-    #[error("the world's {what} mesh needs a {bytes}-byte buffer and the adapter {adapter} allows {max}: make it about {:.1} times coarser (a village's terrain_cell_m), or run with --no-render", (*.bytes as f64 / *.max as f64).sqrt())]
+    #[error("the world's {what} mesh needs a {bytes}-byte buffer and a device on {adapter} allows {max} (wgpu's portable limit): make it about {:.1} times coarser (a village's terrain_cell_m), or run with --no-render", (*.bytes as f64 / *.max as f64).sqrt())]
     TooLarge {
         /// `terrain` or `objects`.
         what: String,

@@ -4,8 +4,10 @@
 //! about 110 GB: the loader refuses it within milliseconds, with the estimate and the fields
 //! that drive it, instead of building until the machine runs out.
 //!
-//! The bound is the machine's available memory (`MemAvailable` in `/proc/meminfo`), or the
-//! one the command line declares ([`set_max_memory`], `--max-memory`).
+//! The bound is the machine's available memory (`MemAvailable` in `/proc/meminfo`, or the
+//! cgroup's `memory.max` where that is less), or the one the command line declares
+//! ([`set_max_memory`], `--max-memory`). It is read when a scenario loads, so a sweep
+//! whose runs load while others hold memory may see less than its first run did.
 
 use std::sync::OnceLock;
 
@@ -39,7 +41,15 @@ pub fn memory_bound() -> Option<(u64, &'static str)> {
         .trim()
         .parse()
         .ok()?;
-    Some((kb * 1024, "this machine's available memory"))
+    let available = kb * 1024;
+    // A container's or a Slurm job's cgroup may allow less than the machine has free.
+    let cgroup = std::fs::read_to_string("/sys/fs/cgroup/memory.max")
+        .ok()
+        .and_then(|s| s.trim().parse::<u64>().ok());
+    Some(match cgroup {
+        Some(limit) if limit < available => (limit, "this process's cgroup memory limit"),
+        _ => (available, "this machine's available memory"),
+    })
 }
 
 /// Terrain height samples of a village of side `size_m` sampled every `cell_m`.

@@ -230,3 +230,34 @@ fn a_village_beyond_the_memory_bound_is_refused_before_it_is_built() {
         assert!(err.contains(said), "{said:?} in: {err}");
     }
 }
+
+#[test]
+fn a_run_option_that_changes_the_bytes_is_another_run_too() {
+    // The same scenario, seed and duration, rendered once and not the next time: the
+    // scenario matches, the digest does not, so the second is refused when it would write.
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("run");
+    let lab = |extra: &[&str]| {
+        let mut args = vec![
+            "run",
+            "scenarios/lab.toml",
+            "--duration",
+            "2",
+            "--out",
+            out.to_str().unwrap(),
+        ];
+        args.extend(extra);
+        hetsim(&args, &[])
+    };
+    assert!(lab(&["--no-render"]).status.success());
+    let first = std::fs::read(out.join("manifest.json")).unwrap();
+    let refused = lab(&[]);
+    let err = String::from_utf8_lossy(&refused.stderr);
+    assert!(!refused.status.success(), "{err}");
+    assert!(
+        err.contains("holds the results of another run") && err.contains("digest"),
+        "{err}"
+    );
+    assert_eq!(std::fs::read(out.join("manifest.json")).unwrap(), first);
+    assert_eq!(entries(tmp.path()), ["run"], "nothing else left behind");
+}

@@ -94,12 +94,12 @@ impl Recorder {
         name: &str,
         metadata: BTreeMap<String, String>,
     ) -> Result<(), RecordError> {
-        if self.failed.is_none() {
+        if !self.broken {
             if let Err(e) = self.writer.write_metadata(&mcap::records::Metadata {
                 name: name.into(),
                 metadata,
             }) {
-                self.failed = Some(e);
+                self.fail(e);
             }
         }
         self.first_failure()
