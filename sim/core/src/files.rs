@@ -9,23 +9,24 @@
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
-/// A file system operation that failed, with the path it failed on.
+/// A file system operation that failed, with the path it failed on. Its message holds the
+/// I/O error, which is therefore not also its `source` (an error chain printed with `{:#}`
+/// would say `No space left on device` twice).
 #[derive(Debug, thiserror::Error)]
-#[error("{}: {source}", path.display())]
+#[error("{}: {error}", path.display())]
 pub struct FileError {
     /// The path involved.
     pub path: PathBuf,
     /// What failed.
-    #[source]
-    pub source: std::io::Error,
+    pub error: std::io::Error,
 }
 
 impl FileError {
     /// A closure that wraps an I/O error with `path`.
     pub fn at(path: &Path) -> impl FnOnce(std::io::Error) -> FileError + '_ {
-        move |source| FileError {
+        move |error| FileError {
             path: path.to_path_buf(),
-            source,
+            error,
         }
     }
 }
@@ -82,7 +83,7 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), FileError> {
     tmp.as_file().sync_all().map_err(FileError::at(path))?;
     tmp.persist(path).map_err(|e| FileError {
         path: path.to_path_buf(),
-        source: e.error,
+        error: e.error,
     })?;
     Ok(())
 }
@@ -176,7 +177,7 @@ mod tests {
         let err = write_dir_atomic(&out, &files, |_| {
             Err(FileError {
                 path: "staged".into(),
-                source: std::io::Error::other("interrupted"),
+                error: std::io::Error::other("interrupted"),
             })
         });
         assert!(err.is_err());

@@ -38,13 +38,14 @@ pub enum FrameError {
     /// A file could not be written.
     #[error(transparent)]
     Io(#[from] FileError),
-    /// An image could not be encoded.
-    #[error("{path}: {source}")]
+    /// An image could not be encoded or written. The message holds the cause, which is
+    /// therefore not also the error's source (a chain would say it twice).
+    #[error("{path}: {error}")]
     Encode {
         /// The file.
         path: PathBuf,
         /// What failed.
-        source: image::ImageError,
+        error: image::ImageError,
     },
     /// An image's bytes do not match its size.
     #[error("{topic}: {what} of {width} x {height} does not match its {bytes} values")]
@@ -185,7 +186,7 @@ impl FrameDump {
         };
         let encode = |path: &Path| {
             let path = path.to_path_buf();
-            move |source| FrameError::Encode { path, source }
+            move |error| FrameError::Encode { path, error }
         };
         if first {
             for sub in ["data", "depth"] {

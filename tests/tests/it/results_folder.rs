@@ -261,3 +261,44 @@ fn a_run_option_that_changes_the_bytes_is_another_run_too() {
     assert_eq!(std::fs::read(out.join("manifest.json")).unwrap(), first);
     assert_eq!(entries(tmp.path()), ["run"], "nothing else left behind");
 }
+
+#[test]
+fn results_and_frames_that_fill_the_disk_say_so_once_and_leave_nothing() {
+    // Each kind of output on a disk too small for it: the cause and the path, in one line,
+    // and no partial folder (a recording's own case is above).
+    for (size, args) in [
+        (
+            "8k",
+            vec![
+                "run",
+                "scenarios/indoor-grid-20.toml",
+                "--duration",
+                "30",
+                "--no-render",
+            ],
+        ),
+        (
+            "1m",
+            vec!["frames", "scenarios/lab.toml", "--from", "0", "--to", "3"],
+        ),
+    ] {
+        let disk = SmallDisk::new(size);
+        let out = disk.path().join("out");
+        let mut args = args.clone();
+        args.extend(["--out", out.to_str().unwrap()]);
+        let full = hetsim(&args, &[]);
+        let err = String::from_utf8_lossy(&full.stderr);
+        assert!(!full.status.success(), "{args:?}: {err}");
+        assert!(err.contains(disk.path().to_str().unwrap()), "{err}");
+        assert_eq!(
+            err.matches("No space left on device").count(),
+            1,
+            "the cause once: {err}"
+        );
+        assert!(
+            entries(disk.path()).is_empty(),
+            "{args:?} left {:?}",
+            entries(disk.path())
+        );
+    }
+}
