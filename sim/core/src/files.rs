@@ -46,11 +46,11 @@ pub fn free_bytes(path: &Path) -> Option<u64> {
     Some(fs.f_bavail.saturating_mul(fs.f_frsize))
 }
 
-/// `bytes` for people: `1.42 GB`, `300 kB` (decimal units, as `df -H` prints them).
+/// `bytes` for people: `1.4 GB`, `300 kB` (decimal units, as `df -H` prints them).
 pub fn human_bytes(bytes: u64) -> String {
     let b = bytes as f64;
     match b {
-        b if b >= 1e9 => format!("{:.2} GB", b / 1e9),
+        b if b >= 1e9 => format!("{:.1} GB", b / 1e9),
         b if b >= 1e6 => format!("{:.1} MB", b / 1e6),
         b if b >= 1e3 => format!("{:.0} kB", b / 1e3),
         b => format!("{b:.0} B"),

@@ -69,13 +69,18 @@ pub fn check_destination(dir: &Path, scenario: &Scenario, replace: bool) -> Resu
     let there = crate::manifest::Manifest::read(dir)?;
     match there.differs_from(scenario) {
         None => Ok(()),
-        Some(differs) => Err(EvalError::OtherRun {
-            dir: dir.to_path_buf(),
-            scenario: there.scenario,
-            seed: there.seed,
-            digest: there.digest.chars().take(16).collect(),
-            differs,
-        }),
+        Some(differs) => Err(other_run(dir, there, differs)),
+    }
+}
+
+/// The refusal of `dir`, which holds the run `there` describes.
+fn other_run(dir: &Path, there: crate::manifest::Manifest, differs: &'static str) -> EvalError {
+    EvalError::OtherRun {
+        dir: dir.to_path_buf(),
+        scenario: there.scenario,
+        seed: there.seed,
+        digest: there.digest.chars().take(16).collect(),
+        differs,
     }
 }
 
@@ -123,13 +128,11 @@ pub fn write_run(
     if !replace && dir.join("manifest.json").is_file() {
         let there = crate::manifest::Manifest::read(&dir)?;
         if there.digest != digest {
-            return Err(EvalError::OtherRun {
-                dir: dir.clone(),
-                scenario: there.scenario,
-                seed: there.seed,
-                digest: there.digest.chars().take(16).collect(),
-                differs: "digest (a run option: --open-loop, --no-render, frames)",
-            });
+            return Err(other_run(
+                &dir,
+                there,
+                "digest (a run option: --open-loop, --no-render, frames)",
+            ));
         }
     } else {
         check_destination(&dir, scenario, true)?;

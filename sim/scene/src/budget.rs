@@ -63,15 +63,6 @@ pub fn village_bytes(size_m: f64, cell_m: f64) -> f64 {
     terrain_samples(size_m, cell_m) * TERRAIN_BYTES_PER_SAMPLE
 }
 
-/// `bytes` for people, decimal units.
-pub fn human(bytes: f64) -> String {
-    match bytes {
-        b if b >= 1e9 => format!("{:.1} GB", b / 1e9),
-        b if b >= 1e6 => format!("{:.0} MB", b / 1e6),
-        b => format!("{:.0} kB", b / 1e3),
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -324,7 +324,8 @@ fn lookup_mut<'a>(table: &'a mut toml::Table, dotted: &str) -> Option<&'a mut to
 /// Refuses, before it is built, a village whose terrain alone needs more memory than the
 /// bound ([`crate::budget`]).
 fn check_world_fits(c: &Checker, file: &ScenarioFile) -> Result<(), SceneError> {
-    use crate::budget::{human, memory_bound, terrain_samples, village_bytes};
+    use crate::budget::{memory_bound, terrain_samples, village_bytes};
+    use hetsim_core::files::human_bytes;
     if file.world.kind != WorldKind::Village {
         return Ok(());
     }
@@ -341,10 +342,10 @@ fn check_world_fits(c: &Checker, file: &ScenarioFile) -> Result<(), SceneError> 
                 v.size_m,
                 v.terrain_cell_m,
                 terrain_samples(v.size_m, v.terrain_cell_m),
-                human(need),
+                human_bytes(need as u64),
                 crate::budget::TERRAIN_BYTES_PER_SAMPLE,
                 from,
-                human(bound as f64)
+                human_bytes(bound)
             ),
         )),
         _ => Ok(()),
