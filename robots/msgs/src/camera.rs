@@ -71,7 +71,7 @@ impl Pinhole {
 }
 
 /// A camera's image and its pinhole: what a renderer needs to make the image.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct CameraGeometry {
     /// Image width, pixels.
     pub width: u32,

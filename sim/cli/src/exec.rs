@@ -46,6 +46,16 @@ pub fn claim(out: &Path, scenario: &Scenario, replace: bool) -> Result<FolderLoc
     Ok(lock)
 }
 
+/// `--camera-profile`: `realistic` or `perfect` in place of the scenario's own (clap has
+/// checked the word); the manifest's resolved scenario records what ran.
+pub fn set_camera_profile(scenario: &mut Scenario, profile: Option<&str>) {
+    match profile {
+        Some("perfect") => scenario.file.camera_profile = hetsim_scene::CameraProfile::Perfect,
+        Some("realistic") => scenario.file.camera_profile = hetsim_scene::CameraProfile::Realistic,
+        _ => {}
+    }
+}
+
 /// A run's resident memory against sim time, sampled at each progress report.
 pub type MemoryTrace = std::sync::Mutex<Vec<(f64, f64)>>;
 
@@ -100,7 +110,7 @@ fn status_mib(key: &str) -> Option<f64> {
 pub fn frames(
     scenario: &Path,
     (from, to): (f64, f64),
-    cameras: Option<String>,
+    (cameras, camera_profile): (Option<String>, Option<&str>),
     seed: Option<u64>,
     (out, replace): (Option<PathBuf>, bool),
     render: RenderOptions,
@@ -112,7 +122,7 @@ pub fn frames(
     let dt = load_scenario(scenario, &LoadOptions::default())?
         .clock
         .dt_secs();
-    let loaded = load_scenario(
+    let mut loaded = load_scenario(
         scenario,
         &LoadOptions {
             robot_files: None,
@@ -120,6 +130,7 @@ pub fn frames(
             duration_secs: Some(to.max(dt)),
         },
     )?;
+    set_camera_profile(&mut loaded, camera_profile);
     let list = cameras.map(|c| {
         c.split(',')
             .map(|s| s.trim().to_string())

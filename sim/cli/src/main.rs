@@ -88,6 +88,10 @@ enum Cmd {
         /// Do not render the cameras (no images reach the robots).
         #[arg(long)]
         no_render: bool,
+        /// Camera imperfections: `realistic` (the robot files' calibration errors and
+        /// exposures) or `perfect` (none); default: the scenario's `camera_profile`.
+        #[arg(long, value_parser = ["realistic", "perfect"])]
+        camera_profile: Option<String>,
         /// Run the SLAM open loop: no GPS, rendezvous or image-matching events, no graph
         /// exchange (the comparison run of Fig. 7).
         #[arg(long)]
@@ -113,6 +117,10 @@ enum Cmd {
         /// Cameras, comma-separated: `robot/camera` or `robot` (default: all).
         #[arg(long)]
         cameras: Option<String>,
+        /// Camera imperfections: `realistic` (the robot files' calibration errors and
+        /// exposures) or `perfect` (none); default: the scenario's `camera_profile`.
+        #[arg(long, value_parser = ["realistic", "perfect"])]
+        camera_profile: Option<String>,
         /// Master seed (default: the scenario's).
         #[arg(long)]
         seed: Option<u64>,
@@ -313,11 +321,12 @@ fn real_main() -> Result<()> {
             record_encoding,
             dump_frames,
             no_render,
+            camera_profile,
             open_loop,
             backend,
             adapter,
         } => {
-            let loaded = load_scenario(
+            let mut loaded = load_scenario(
                 &scenario,
                 &LoadOptions {
                     robot_files: None,
@@ -325,6 +334,7 @@ fn real_main() -> Result<()> {
                     duration_secs: duration,
                 },
             )?;
+            exec::set_camera_profile(&mut loaded, camera_profile.as_deref());
             let render = (!no_render).then_some(render_options(backend, adapter));
             exec::execute(
                 &loaded,
@@ -346,6 +356,7 @@ fn real_main() -> Result<()> {
             from,
             to,
             cameras,
+            camera_profile,
             seed,
             out,
             force,
@@ -354,7 +365,7 @@ fn real_main() -> Result<()> {
         } => exec::frames(
             &scenario,
             (from, to),
-            cameras,
+            (cameras, camera_profile.as_deref()),
             seed,
             (out, force),
             render_options(backend, adapter),

@@ -216,6 +216,11 @@ fn mcap_scenario(args: &ReplayArgs<'_>, run: &RunDescription, duration: f64) -> 
             )
         })?,
     };
+    let mut scenario = scenario;
+    // The cameras the live run had (a `--camera-profile` is not in the scenario's text).
+    if let Some(profile) = run.camera_profile {
+        scenario.file.camera_profile = profile;
+    }
     Ok(scenario)
 }
 

@@ -4,6 +4,7 @@ use crate::comms::CommsStats;
 use hetsim_core::RunDigest;
 use hetsim_msgs::{Artifact, Pose, StackStatus};
 use hetsim_render::AdapterSummary;
+use hetsim_sensors::camera::calibration::CameraCalibration;
 use std::collections::BTreeMap;
 
 /// What one robot did, as the simulator saw it.
@@ -48,6 +49,9 @@ pub struct RunOutput {
     pub digest: RunDigest,
     /// The adapter that rendered the cameras, if any.
     pub adapter: Option<AdapterSummary>,
+    /// Every camera's topic with the calibration its robot was given and the one it had, in
+    /// camera order (empty for an unrendered run or a replay).
+    pub cameras: Vec<(String, CameraCalibration)>,
 }
 
 impl RunOutput {

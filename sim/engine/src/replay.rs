@@ -50,6 +50,9 @@ pub struct RunDescription {
     /// Whether the live run rendered its cameras (then the evaluation, which may render
     /// what it needs, such as the coverage mission's localization paths, renders again).
     pub rendered: bool,
+    /// The camera profile the live run had (`None` in a recording from before profiles:
+    /// the scenario's).
+    pub camera_profile: Option<hetsim_scene::CameraProfile>,
 }
 
 /// Something recorded.
@@ -116,6 +119,11 @@ pub trait Recording {
     /// Whether the recording holds every command the robots sent (a hetsim recording does,
     /// a dataset does not): then a replayed stack's command with no recorded one diverges.
     fn has_commands(&self) -> bool {
+        false
+    }
+    /// Whether the recorded run rendered its cameras: then the replay reports the same
+    /// calibrations (drawn again from the same streams) as the live run did.
+    fn rendered(&self) -> bool {
         false
     }
 }
@@ -265,6 +273,11 @@ pub fn replay_withholding_truth(
     } = feed;
     let outcome = recording.outcome();
     let robots = replayed.outcomes(scenario, outcome, &last_pose);
+    let cameras = if recording.rendered() {
+        crate::cameras::calibrations(scenario, &Streams::new(scenario.seed))
+    } else {
+        Vec::new()
+    };
     Ok(stages::output(
         clock,
         &replayed.stacks,
@@ -275,6 +288,7 @@ pub fn replay_withholding_truth(
             robots,
             truth,
             adapter: None,
+            cameras,
         },
     ))
 }

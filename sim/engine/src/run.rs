@@ -417,6 +417,11 @@ impl<'s, 'o> LiveRun<'s, 'o> {
             })
             .collect();
         let adapter = self.cameras.as_ref().map(|c| c.adapter().clone());
+        let cameras = self
+            .cameras
+            .as_ref()
+            .map(|c| c.calibrations())
+            .unwrap_or_default();
         Ok(stages::output(
             self.clock,
             &self.stacks,
@@ -427,6 +432,7 @@ impl<'s, 'o> LiveRun<'s, 'o> {
                 robots,
                 truth: self.truth,
                 adapter,
+                cameras,
             },
         ))
     }

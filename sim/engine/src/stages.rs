@@ -181,6 +181,10 @@ pub(crate) struct Kept<'a> {
     pub robots: Vec<RobotOutcome>,
     pub truth: Vec<Vec<(u64, Pose)>>,
     pub adapter: Option<AdapterSummary>,
+    pub cameras: Vec<(
+        String,
+        hetsim_sensors::camera::calibration::CameraCalibration,
+    )>,
 }
 
 /// The run's raw output: what the stacks published at the end, beside what the loop kept.
@@ -191,6 +195,7 @@ pub(crate) fn output(clock: SimClock, stacks: &Stacks, comms: &Comms, kept: Kept
         robots,
         truth,
         adapter,
+        cameras,
     } = kept;
     RunOutput {
         ticks,
@@ -212,6 +217,7 @@ pub(crate) fn output(clock: SimClock, stacks: &Stacks, comms: &Comms, kept: Kept
         comms: comms.stats.clone(),
         digest: post.digest,
         adapter,
+        cameras,
     }
 }
 

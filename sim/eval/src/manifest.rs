@@ -5,6 +5,7 @@
 //! the `serde_json` object it used to be built as (whose keys are sorted).
 
 use crate::EvalError;
+use hetsim_engine::cameras::Calibration;
 use hetsim_engine::RunOutput;
 use hetsim_scene::{Scenario, Sensor};
 use serde::{Deserialize, Serialize};
@@ -20,6 +21,10 @@ pub struct Manifest {
     /// for a run from before manifests named it.
     #[serde(default)]
     pub build_sha256: String,
+    /// Every camera's given and true calibration, in camera order: the true one is only
+    /// here (a frame dump's `sensor.yaml` and a recording's camera info carry the given).
+    #[serde(default)]
+    pub cameras: Vec<CameraRecord>,
     /// The run digest (hex).
     pub digest: String,
     /// The tick, seconds.
@@ -43,6 +48,19 @@ pub struct Manifest {
     pub seed: u64,
     /// The digest of each robot's stack, in robot order.
     pub stacks: Vec<StackDigest>,
+}
+
+/// One camera's calibrations, as the manifest records them.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct CameraRecord {
+    /// What the robot software was given (its robot file's values).
+    pub given: Calibration,
+    /// The true mid-exposure minus the image's stamp, milliseconds.
+    pub time_offset_ms: f64,
+    /// `<robot>/<camera>[/<left|right>]`.
+    pub topic: String,
+    /// What the simulator rendered with.
+    pub truth: Calibration,
 }
 
 /// The adapter a run rendered on.
@@ -91,6 +109,16 @@ impl Manifest {
                 name: a.name.clone(),
             }),
             build_sha256: build_sha256().to_string(),
+            cameras: result
+                .cameras
+                .iter()
+                .map(|(topic, c)| CameraRecord {
+                    given: c.given,
+                    time_offset_ms: c.time_offset_s * 1e3,
+                    topic: topic.clone(),
+                    truth: c.truth,
+                })
+                .collect(),
             digest: digest.to_string(),
             dt_secs: scenario.clock.dt_secs(),
             duration_secs: scenario.duration_secs,

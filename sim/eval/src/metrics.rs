@@ -72,6 +72,61 @@ pub struct Metrics {
     /// SLAM stacks: NEES of the robot pose, events, joint accuracy.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub slam: Option<SlamMetrics>,
+    /// Each pinhole camera's drawn calibration error, by topic, as a calibration report
+    /// would give it (cameras calibrated exactly are left out).
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub cameras: BTreeMap<String, CalibrationErrorMetrics>,
+}
+
+/// A camera's drawn calibration error in pixels: where the given calibration puts what the
+/// true camera sees (`hetsim_sensors::camera::calibration::reprojection_rms_px`).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct CalibrationErrorMetrics {
+    /// The intrinsics' and distortion's alone, as a calibration report's reprojection
+    /// error is, pixels.
+    pub lens_rms_px: f64,
+    /// RMS over the image of points at `depth_m`, pixels (intrinsics, distortion, mount and,
+    /// for a bench's right camera, the pair's relative pose).
+    pub reprojection_rms_px: f64,
+    /// The depth of those points, metres.
+    pub depth_m: f64,
+    /// The same for points at infinity (the mount's translation left out), pixels.
+    pub rays_rms_px: f64,
+    /// The stamp's offset against the true mid-exposure, milliseconds.
+    pub time_offset_ms: f64,
+}
+
+/// Every pinhole camera's calibration error, where one was drawn (the `perfect` profile and
+/// a robot file without `calibration_error` have none; the omnidirectional camera is
+/// calibrated exactly, and has no pinhole to reproject with).
+fn calibration_errors(output: &RunOutput) -> BTreeMap<String, CalibrationErrorMetrics> {
+    use hetsim_engine::cameras::{
+        reprojection_rms_px, Calibration, CameraCalibration, REPROJECTION_DEPTH_M,
+    };
+    output
+        .cameras
+        .iter()
+        .filter(|(_, c)| {
+            c.given.geometry.k.alpha_u > 0.0 && (c.truth != c.given || c.time_offset_s != 0.0)
+        })
+        .map(|(topic, c)| {
+            let lens = CameraCalibration {
+                truth: Calibration {
+                    body_from_mount: c.given.body_from_mount,
+                    ..c.truth
+                },
+                ..*c
+            };
+            let m = CalibrationErrorMetrics {
+                lens_rms_px: reprojection_rms_px(&lens, f64::INFINITY),
+                reprojection_rms_px: reprojection_rms_px(c, REPROJECTION_DEPTH_M),
+                depth_m: REPROJECTION_DEPTH_M,
+                rays_rms_px: reprojection_rms_px(c, f64::INFINITY),
+                time_offset_ms: c.time_offset_s * 1e3,
+            };
+            (topic.clone(), m)
+        })
+        .collect()
 }
 
 impl Metrics {
@@ -143,6 +198,7 @@ impl Metrics {
             coverage,
             team,
             slam,
+            cameras: calibration_errors(output),
         })
     }
 }

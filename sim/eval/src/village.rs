@@ -437,6 +437,7 @@ mod tests {
                     .collect(),
                 joint: BTreeMap::new(),
             }),
+            cameras: BTreeMap::new(),
         }
     }
 
@@ -445,6 +446,7 @@ mod tests {
         Manifest {
             adapter: None,
             build_sha256: String::new(),
+            cameras: Vec::new(),
             digest: "ab".into(),
             dt_secs: 0.01,
             duration_secs: 600.0,

@@ -17,7 +17,8 @@ pub struct Channel {
 }
 
 enum Kind {
-    /// Not replayed: `/tf`, `/tf_static`, the WGS-84 copy of a GPS fix.
+    /// Not replayed: `/tf`, `/tf_static`, the WGS-84 copy of a GPS fix, cameras' calibrations
+    /// (the robot files the recording carries give them).
     Skip,
     /// `/<robot>/truth`.
     Truth(String),
@@ -91,7 +92,12 @@ impl Channel {
                 kind,
             })
         };
-        if matches!(topic, "/tf" | "/tf_static") || schema == "sensor_msgs/msg/NavSatFix" {
+        if matches!(topic, "/tf" | "/tf_static")
+            || matches!(
+                schema,
+                "sensor_msgs/msg/NavSatFix" | "sensor_msgs/msg/CameraInfo"
+            )
+        {
             return channel(Kind::Skip);
         }
         if schema_encoding != "ros2msg" || message_encoding != "cdr" {

@@ -41,6 +41,9 @@ impl Recording for McapRecording {
     fn has_commands(&self) -> bool {
         true
     }
+    fn rendered(&self) -> bool {
+        self.run.rendered
+    }
 }
 
 /// A recording, open for reading.
@@ -544,6 +547,17 @@ fn run_description(m: Option<&BTreeMap<String, String>>) -> Result<RunDescriptio
         dt_ns: get("dt_ns")?.parse().map_err(|e| bad("dt_ns", &e))?,
         open_loop: get("open_loop")? == "true",
         rendered: get("rendered")? == "true",
+        camera_profile: match m.get("camera_profile").map(String::as_str) {
+            None => None,
+            Some("perfect") => Some(hetsim_scene::CameraProfile::Perfect),
+            Some("realistic") => Some(hetsim_scene::CameraProfile::Realistic),
+            Some(other) => {
+                return Err(MetadataError::NotANumber {
+                    key: "camera_profile".into(),
+                    why: format!("{other:?} is neither \"realistic\" nor \"perfect\""),
+                })
+            }
+        },
         scenario_path: PathBuf::from(get("scenario_path")?),
         scenario_text: get("scenario")?.clone(),
         seed: get("seed")?.parse().map_err(|e| bad("seed", &e))?,

@@ -8,7 +8,8 @@
 //! | `/<robot>/truth` | `geometry_msgs/msg/PoseStamped` (frame `world`), every robot, at `truth_rate_hz` |
 //! | `/tf` | `tf2_msgs/msg/TFMessage`: `world` -> `<robot>/base_link` with each truth sample |
 //! | `/tf_static` | `base_link` -> each sensor's frame `<robot>/<sensor>` (cameras: the optical frame, z forward), once per sensor |
-//! | `/<robot>/<camera>[/left\|right]` | `sensor_msgs/msg/Image`, `rgb8`, raw |
+//! | `/<robot>/<camera>[/left\|right]` | `sensor_msgs/msg/Image`, `rgb8` or `mono8`, raw |
+//! | `/<robot>/<camera>[/left\|right]/camera_info` | `sensor_msgs/msg/CameraInfo` with each image: the calibration the robot is **given** (its robot file's; the true one is only in the results' manifest) |
 //! | `/<robot>/<gps>` | `sensor_msgs/msg/NavSatFix` (WGS-84 around [`GEO_ORIGIN`]) |
 //! | `/<robot>/<laser>` | `sensor_msgs/msg/LaserScan` (no return: +inf, REP-117) |
 //! | `/<robot>/<imu>` | `sensor_msgs/msg/Imu` (no orientation: `orientation_covariance[0] = -1`) |
@@ -133,6 +134,9 @@ pub struct Recorder {
     counts: BTreeMap<String, u64>,
     /// Sensor frames whose `/tf_static` transform is written.
     static_frames: BTreeSet<String>,
+    /// Each pinhole camera's given calibration by topic (`<robot>/<camera>[/<eye>]`): image
+    /// size, pinhole, distortion and a bench's right camera's `-baseline`.
+    camera_info: BTreeMap<String, (u32, u32, hetsim_msgs::Pinhole, [f64; 2], f64)>,
     sequence: u32,
     /// The delivery time of the sensor message being written, if it is one.
     received_ns: Option<u64>,
@@ -176,6 +180,7 @@ impl Recorder {
             channels: BTreeMap::new(),
             counts: BTreeMap::new(),
             static_frames: BTreeSet::new(),
+            camera_info: BTreeMap::new(),
             sequence: 0,
             received_ns: None,
             open_loop: false,
@@ -443,6 +448,16 @@ impl Recorder {
         };
         for e in encoded {
             self.write_bytes(&format!("{topic}{}", e.suffix), e.schema, t, &e.data);
+        }
+        if let (SensorMsg::Image(_), Some(&(w, h, k, d, tx))) =
+            (msg, self.camera_info.get(&topic[1..]))
+        {
+            let mut info = ros2::CameraInfo::of(w, h, &k, d, tx);
+            info.header = ros2::Header {
+                stamp: ros2::Time::of(t),
+                frame_id: self.sensor_frame(robot, sensor, body_from_sensor, t),
+            };
+            self.write_cdr(&format!("{topic}/camera_info"), ros2::CAMERA_INFO, t, &info);
         }
     }
 

@@ -25,8 +25,9 @@ pub use load::{
     load_robot_model, load_scenario, load_scenario_text, LoadOptions, ResolvedRobot, Scenario,
 };
 pub use robot::{
-    camera_geometry, Body, DriveKind, Helicopter, Mount, PilotTable, RobotModel, Sensor, SlamTable,
-    SteeringKind, Wheels, HAT_SCALE, HAT_THICKNESS_M,
+    camera_geometry, Body, CalibrationError, CameraProfile, DriveKind, Exposure, Helicopter, Mount,
+    PilotTable, RobotModel, Sensor, Shutter, SlamTable, SteeringKind, Wheels, HAT_SCALE,
+    HAT_THICKNESS_M, TRUNCATION_SIGMAS,
 };
 pub use scenario::{
     BoxSpec, CommsSpec, CoverageTable, IndoorSpec, MissionSpec, RobotSpec, ScenarioFile, Start,

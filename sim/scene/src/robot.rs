@@ -6,7 +6,10 @@
 
 use serde::{Deserialize, Serialize};
 
+mod camera;
 mod validate;
+
+pub use camera::{CalibrationError, CameraProfile, Exposure, Shutter, TRUNCATION_SIGMAS};
 
 pub use hetsim_pilot::{PilotTable, SteeringKind};
 pub use hetsim_slam::stack::SlamTable;
@@ -194,6 +197,12 @@ pub enum Sensor {
         /// What the camera delivers: `"rgb8"` (the default) or `"mono8"` (grey).
         #[serde(default)]
         encoding: hetsim_msgs::PixelEncoding,
+        /// How far the true calibration may lie from the one above (none by default).
+        #[serde(default)]
+        calibration_error: CalibrationError,
+        /// Exposure time, shutter and vignetting (an instant by default).
+        #[serde(default)]
+        exposure: Exposure,
     },
     /// A rectified stereo bench: left camera at `mount`, right camera `baseline_m` to its right.
     StereoCamera {
@@ -227,6 +236,13 @@ pub enum Sensor {
         /// What the cameras deliver: `"rgb8"` (the default) or `"mono8"` (grey).
         #[serde(default)]
         encoding: hetsim_msgs::PixelEncoding,
+        /// How far the true calibration of both cameras and of the pair may lie from the one
+        /// above (none by default).
+        #[serde(default)]
+        calibration_error: CalibrationError,
+        /// Exposure time, shutter and vignetting of both cameras (an instant by default).
+        #[serde(default)]
+        exposure: Exposure,
     },
     /// An omnidirectional camera (the parent's tracker camera).
     OmniCamera {
@@ -431,6 +447,52 @@ impl Sensor {
             Sensor::Rendezvous { .. } => "rendezvous",
             Sensor::ImageMatch { .. } => "image_match",
             Sensor::OraclePose { .. } => "oracle_pose",
+        }
+    }
+
+    /// A pinhole camera's or a stereo bench's calibration error and exposure.
+    pub fn imperfections(&self) -> Option<(&CalibrationError, &Exposure)> {
+        match self {
+            Sensor::Camera {
+                calibration_error,
+                exposure,
+                ..
+            }
+            | Sensor::StereoCamera {
+                calibration_error,
+                exposure,
+                ..
+            } => Some((calibration_error, exposure)),
+            _ => None,
+        }
+    }
+
+    /// A pinhole camera's or a stereo bench's given geometry: image size, intrinsics and
+    /// distortion (zero where the file gives none).
+    pub fn given_geometry(&self) -> Option<(u32, u32, hetsim_msgs::Pinhole, [f64; 2])> {
+        match self {
+            Sensor::Camera {
+                width_px,
+                height_px,
+                hfov_deg,
+                intrinsics,
+                distortion,
+                ..
+            }
+            | Sensor::StereoCamera {
+                width_px,
+                height_px,
+                hfov_deg,
+                intrinsics,
+                distortion,
+                ..
+            } => Some((
+                *width_px,
+                *height_px,
+                camera_geometry(*width_px, *height_px, *hfov_deg, intrinsics.as_ref()).k,
+                distortion.unwrap_or([0.0, 0.0]),
+            )),
+            _ => None,
         }
     }
 

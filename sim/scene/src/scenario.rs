@@ -39,6 +39,10 @@ pub struct ScenarioFile {
     /// The radio between robots.
     #[serde(default)]
     pub comms: CommsSpec,
+    /// `"realistic"` (the default): the cameras' calibration errors and exposures as their
+    /// robot files declare them; `"perfect"`: none (the CLI's `--camera-profile` overrides it).
+    #[serde(default)]
+    pub camera_profile: crate::CameraProfile,
 }
 
 /// The `[comms]` table: the radio link model between every pair of robots.

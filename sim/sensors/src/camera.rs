@@ -4,10 +4,14 @@
 //! * radial distortion `x_d = x_u (1 + k1 r² + k2 r⁴)`, resampled (bilinear) from a render
 //!   padded beyond the image where the distortion needs rays outside its field of view;
 //! * the omnidirectional camera's equirectangular panorama, resampled from six 90° faces;
-//! * exposure gain and Gaussian pixel noise ([`PixelNoise`]), rounded to bytes.
+//! * the exposure: motion blur and the rolling shutter ([`motion`]), rendered with the true
+//!   calibration, not the one the robot software is given ([`calibration`]);
+//! * exposure gain, vignetting and Gaussian pixel noise ([`PixelNoise`]), rounded to bytes.
 //!
 //! The engine (`hetsim_engine::cameras`) decides what to render when and applies these.
 
+pub mod calibration;
+pub mod motion;
 mod noise;
 mod optics;
 #[cfg(test)]

@@ -30,8 +30,29 @@ impl Recorder {
         metadata.insert("dt_ns".into(), scenario.clock.dt_ns().to_string());
         metadata.insert("open_loop".into(), self.open_loop.to_string());
         metadata.insert("rendered".into(), rendered.to_string());
+        metadata.insert(
+            "camera_profile".into(),
+            format!("{:?}", scenario.file.camera_profile).to_lowercase(),
+        );
         for r in &scenario.robots {
             metadata.insert(format!("robot_file/{}", r.spec.model), r.model_text.clone());
+            for s in &r.model.sensors {
+                let Some((w, h, k, d)) = s.given_geometry() else {
+                    continue;
+                };
+                let base = format!("{}/{}", r.spec.name, s.name());
+                match s {
+                    hetsim_scene::Sensor::StereoCamera { baseline_m, .. } => {
+                        self.camera_info
+                            .insert(format!("{base}/left"), (w, h, k, d, 0.0));
+                        self.camera_info
+                            .insert(format!("{base}/right"), (w, h, k, d, -baseline_m));
+                    }
+                    _ => {
+                        self.camera_info.insert(base, (w, h, k, d, 0.0));
+                    }
+                }
+            }
         }
         self.metadata(RUN_METADATA, metadata)
     }

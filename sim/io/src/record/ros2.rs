@@ -25,6 +25,13 @@ pub const TF_MESSAGE: &str = "tf2_msgs/msg/TFMessage";
 pub const COMMAND: &str = "hetsim_msgs/msg/Command";
 /// The radio's schema.
 pub const COMMS: &str = "hetsim_msgs/msg/Comms";
+/// A camera's calibration's schema (`<camera topic>/camera_info`).
+pub const CAMERA_INFO: &str = "sensor_msgs/msg/CameraInfo";
+
+const REGION_OF_INTEREST: (&str, &str) = (
+    "sensor_msgs/RegionOfInterest",
+    "uint32 x_offset\nuint32 y_offset\nuint32 height\nuint32 width\nbool do_rectify\n",
+);
 
 /// The `ros2msg` definition of a schema name used in recordings.
 pub fn definition(schema: &str) -> Option<String> {
@@ -45,6 +52,10 @@ pub fn definition(schema: &str) -> Option<String> {
         COMMS => with_deps(
             "# A radio delivery to this robot: sender, topic, when it was sent, its size and its bytes.\nstd_msgs/Header header\nstring from\nstring to\nstring topic\nbuiltin_interfaces/Time sent\nuint32 bytes\nuint8[] payload\n",
             &header_deps,
+        ),
+        CAMERA_INFO => with_deps(
+            "std_msgs/Header header\nuint32 height\nuint32 width\nstring distortion_model\nfloat64[] d\nfloat64[9] k\nfloat64[9] r\nfloat64[12] p\nuint32 binning_x\nuint32 binning_y\nsensor_msgs/RegionOfInterest roi\n",
+            &[HEADER, TIME, REGION_OF_INTEREST],
         ),
         _ => return hetsim_sensors::ros2::definition(schema),
     })
@@ -70,6 +81,63 @@ pub struct TransformStamped {
 #[derive(Serialize)]
 pub struct TfMessage {
     pub transforms: Vec<TransformStamped>,
+}
+
+/// `sensor_msgs/msg/RegionOfInterest` (the whole image: all zeros).
+#[derive(Clone, Default, Serialize)]
+pub struct RegionOfInterest {
+    pub x_offset: u32,
+    pub y_offset: u32,
+    pub height: u32,
+    pub width: u32,
+    pub do_rectify: bool,
+}
+
+/// `sensor_msgs/msg/CameraInfo`: a camera's calibration as ROS carries it beside each image.
+#[derive(Serialize)]
+pub struct CameraInfo {
+    pub header: Header,
+    pub height: u32,
+    pub width: u32,
+    pub distortion_model: String,
+    pub d: Vec<f64>,
+    pub k: [f64; 9],
+    pub r: [f64; 9],
+    pub p: [f64; 12],
+    pub binning_x: u32,
+    pub binning_y: u32,
+    pub roi: RegionOfInterest,
+}
+
+impl CameraInfo {
+    /// The `plumb_bob` calibration of a `width x height` pinhole `k` with radial distortion
+    /// `[k1, k2]`; `tx_m`: for a bench's right camera, its position along the left camera's x
+    /// (`-baseline`), which ROS puts in the projection matrix as `Tx = fx * tx_m`; 0 otherwise.
+    pub fn of(
+        width: u32,
+        height: u32,
+        k: &hetsim_msgs::Pinhole,
+        [k1, k2]: [f64; 2],
+        tx_m: f64,
+    ) -> Self {
+        let (fx, fy, cx, cy) = (k.alpha_u, k.alpha_v, k.u0, k.v0);
+        Self {
+            header: Header {
+                stamp: Time::of(0),
+                frame_id: String::new(),
+            },
+            height,
+            width,
+            distortion_model: "plumb_bob".into(),
+            d: vec![k1, k2, 0.0, 0.0, 0.0],
+            k: [fx, 0.0, cx, 0.0, fy, cy, 0.0, 0.0, 1.0],
+            r: [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0],
+            p: [fx, 0.0, cx, fx * tx_m, 0.0, fy, cy, 0.0, 0.0, 0.0, 1.0, 0.0],
+            binning_x: 0,
+            binning_y: 0,
+            roi: RegionOfInterest::default(),
+        }
+    }
 }
 
 /// `hetsim_msgs/msg/Command`.

@@ -240,7 +240,8 @@ fn check_camera<'a>(
             check_image(c, at, *width_px, *height_px)?;
             check_optics(c, at, *hfov_deg, intrinsics.as_ref())?;
             c.range(&at("pixel_noise_sigma"), *pixel_noise_sigma, 0.0, 64.0)?;
-            check_lens(c, at, *distortion, *gain)
+            check_lens(c, at, *distortion, *gain)?;
+            check_imperfections(c, at, sensor, None)
         }
         Sensor::StereoCamera {
             width_px,
@@ -261,7 +262,8 @@ fn check_camera<'a>(
             check_optics(c, at, *hfov_deg, intrinsics.as_ref())?;
             c.range(&at("baseline_m"), *baseline_m, 1e-3, 10.0)?;
             c.range(&at("pixel_noise_sigma"), *pixel_noise_sigma, 0.0, 64.0)?;
-            check_lens(c, at, *distortion, *gain)
+            check_lens(c, at, *distortion, *gain)?;
+            check_imperfections(c, at, sensor, Some(*baseline_m))
         }
         Sensor::OmniCamera {
             width_px,
@@ -425,6 +427,32 @@ fn check_ranging_sensor<'a>(
         // The other kinds have no range: `check_sensor_kind` hands them elsewhere.
         _ => Ok(()),
     }
+}
+
+/// Checks a pinhole camera's or a bench's `calibration_error` and `exposure` against its
+/// given geometry and rate.
+fn check_imperfections<'a>(
+    c: &Checker,
+    at: &dyn Fn(&'static str) -> [&'a str; 3],
+    sensor: &Sensor,
+    baseline_m: Option<f64>,
+) -> Result<(), SceneError> {
+    let (Some((error, exposure)), Some((width_px, height_px, k, distortion))) =
+        (sensor.imperfections(), sensor.given_geometry())
+    else {
+        return Ok(());
+    };
+    let [sensors, i, _] = at("");
+    let nominal = super::camera::Nominal {
+        at: [sensors, i],
+        width_px,
+        height_px,
+        k,
+        distortion,
+        baseline_m,
+        rate_hz: sensor.rate_hz(),
+    };
+    super::camera::check(c, &nominal, error, exposure)
 }
 
 /// Checks a camera's lens: `distortion` coefficients within 1 in size, `gain` in range.

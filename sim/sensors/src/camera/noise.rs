@@ -209,6 +209,30 @@ impl PixelNoise {
         }
     }
 
+    /// [`PixelNoise::apply`] with each pixel's own gain `gains[i]` (vignetting): the general
+    /// path, with the same bits reaching the same channels.
+    pub fn apply_mapped(
+        &self,
+        src: &[u8],
+        stride: usize,
+        gains: &[f32],
+        rng: &mut impl Rng,
+    ) -> Vec<u8> {
+        let mut bits = SplitMix64(rng.next_u64());
+        let mut rgb: Vec<u8> = Vec::with_capacity(src.len() / stride * 3);
+        for px in src.chunks_exact(stride) {
+            rgb.extend_from_slice(&px[..3]);
+        }
+        for (q, o) in rgb.chunks_mut(4).enumerate() {
+            let word = bits.next();
+            for (k, c) in o.iter_mut().enumerate() {
+                let n = self.value((word >> (16 * k)) as u16);
+                *c = quantize(*c as f32 * gains[(q * 4 + k) / 3] + n);
+            }
+        }
+        rgb
+    }
+
     /// [`PixelNoise::apply`] reduced to one grey byte a pixel by `luminance`: the same noise
     /// draws and the same bytes as `apply` followed by `luminance` on each pixel, without the
     /// RGB image in between where the renderer's RGBA is taken at unit gain.
