@@ -14,7 +14,7 @@
 //!
 //! So the pixel `q` of row `r` sees at time `t` what the rendered image shows at
 //! `q - flow(q) t`, and its value is the mean over its exposure window
-//! `t ∈ τ_r + [-T/2, T/2]` (midpoint rule, one sample per half pixel of motion, bilinear).
+//! `t ∈ τ_r + [-T/2, T/2]` (midpoint rule, one bilinear sample per pixel of motion).
 //! Depth comes from the renderer (0, the sky, is infinitely far: only the rotation moves it).
 //! Where a pixel's motion over its exposure is under half a pixel it is not blurred
 //! ([`BLUR_MIN_PX`]), and where no pixel of the image moves that much, and no row is shifted
@@ -36,8 +36,16 @@ pub const BLUR_MIN_PX: f64 = 0.5;
 /// A rolling shutter's row shift below which an image is not resampled, pixels.
 pub const SHIFT_MIN_PX: f64 = 0.05;
 
-/// The most samples along one pixel's motion (motion over 16 pixels is sampled coarser).
-pub const MAX_SAMPLES: usize = 32;
+/// The spacing of the samples along a pixel's motion, pixels: each sample is bilinear, which
+/// already averages over a pixel, so one a pixel integrates the motion (the test against
+/// sub-frame accumulation holds it to account).
+pub const SAMPLE_SPACING_PX: f32 = 1.0;
+
+/// The width of the row segments tested as a whole for motion below the thresholds, pixels.
+const SEGMENT_PX: usize = 32;
+
+/// The most samples along one pixel's motion (motion over 15 pixels is sampled coarser).
+pub const MAX_SAMPLES: usize = 16;
 
 /// The camera's motion at the rendered instant, in its optical frame (x right, y down,
 /// z forward): linear velocity, metres per second, and angular velocity, radians per second
@@ -127,38 +135,100 @@ pub fn expose(
         return None;
     }
     let mut out = vec![0u8; rgba.len()];
+    // Per column and row: the normalized image coordinates, and the rotation's flow terms
+    // that depend on one of them only; all in f32 (a byte image needs no more).
+    let xs: Vec<f32> = (0..width)
+        .map(|c| ((c as f64 - k.u0) / k.alpha_u) as f32)
+        .collect();
+    let (fu, fv) = (k.alpha_u as f32, k.alpha_v as f32);
+    let v = twist.v.map(|x| x as f32);
+    let w = twist.w.map(|x| x as f32);
+    let exposure = timing.exposure_s as f32;
+    const BLUR_MIN_PX2: f32 = (BLUR_MIN_PX * BLUR_MIN_PX) as f32;
+    const SHIFT_MIN_PX2: f32 = (SHIFT_MIN_PX * SHIFT_MIN_PX) as f32;
     for (r, row) in out.chunks_exact_mut(width * 4).enumerate() {
-        let tau = timing.row_offset_s(r, height);
+        let tau = timing.row_offset_s(r, height) as f32;
+        let y = ((r as f64 - k.v0) / k.alpha_v) as f32;
+        let depth_row = depth_m.map(|d| &d[r * width..(r + 1) * width]);
+        // Segments of a row whose every pixel moves less than the thresholds (a bound from
+        // the segment's nearest depth and its widest x) are copied as they are.
+        let still = |c0: usize, c1: usize| {
+            let xm = xs[c0].abs().max(xs[c1 - 1].abs());
+            let inv_z = depth_row.map_or(0.0, |d| {
+                let z = d[c0..c1]
+                    .iter()
+                    .fold(f32::INFINITY, |a, &z| if z > 0.0 { a.min(z) } else { a });
+                if z.is_finite() {
+                    1.0 / z
+                } else {
+                    0.0
+                }
+            });
+            let (ay, aw, av) = (y.abs(), w.abs(), v.abs());
+            let bu = fu
+                * ((av.x + xm * av.z) * inv_z
+                    + xm * ay * aw.x
+                    + (1.0 + xm * xm) * aw.y
+                    + ay * aw.z);
+            let bv = fv
+                * ((av.y + ay * av.z) * inv_z
+                    + (1.0 + ay * ay) * aw.x
+                    + xm * ay * aw.y
+                    + xm * aw.z);
+            let speed2 = bu * bu + bv * bv;
+            speed2 * exposure * exposure < BLUR_MIN_PX2 && speed2 * tau * tau < SHIFT_MIN_PX2
+        };
+        let mut still_until = 0;
         for (c, px) in row.chunks_exact_mut(4).enumerate() {
-            let i = r * width + c;
-            let z = depth_m.map_or(0.0, |d| d[i]);
-            let inv_z = if z > 0.0 { 1.0 / z as f64 } else { 0.0 };
-            let [fu, fv] = flow(k, twist, c as f64, r as f64, inv_z);
-            let speed = fu.hypot(fv);
-            let extent = speed * timing.exposure_s;
-            let n = if extent < BLUR_MIN_PX {
-                1
-            } else {
-                ((extent / BLUR_MIN_PX).ceil() as usize).clamp(2, MAX_SAMPLES)
-            };
-            if n == 1 && speed * tau.abs() < SHIFT_MIN_PX {
+            if c % SEGMENT_PX == 0 {
+                let end = (c + SEGMENT_PX).min(width);
+                if still(c, end) {
+                    still_until = end;
+                }
+            }
+            if c < still_until {
+                let i = r * width + c;
                 px.copy_from_slice(&rgba[i * 4..i * 4 + 4]);
                 continue;
             }
-            let mut sum = [0f32; 3];
+            let x = xs[c];
+            let z = depth_row.map_or(0.0, |d| d[c]);
+            let inv_z = if z > 0.0 { 1.0 / z } else { 0.0 };
+            let du = fu * ((-v.x + x * v.z) * inv_z + x * y * w.x - (1.0 + x * x) * w.y + y * w.z);
+            let dv = fv * ((-v.y + y * v.z) * inv_z + (1.0 + y * y) * w.x - x * y * w.y - x * w.z);
+            // Squared lengths first: most pixels of a slow camera stop here.
+            let speed2 = du * du + dv * dv;
+            let blurs = speed2 * exposure * exposure >= BLUR_MIN_PX2;
+            let i = r * width + c;
+            if !blurs && speed2 * tau * tau < SHIFT_MIN_PX2 {
+                px.copy_from_slice(&rgba[i * 4..i * 4 + 4]);
+                continue;
+            }
+            let n = if blurs {
+                ((speed2.sqrt() * exposure / SAMPLE_SPACING_PX).ceil() as usize)
+                    .clamp(2, MAX_SAMPLES)
+            } else {
+                1
+            };
+            let mut sum = [0u32; 3];
             for j in 0..n {
                 let t = if n == 1 {
                     tau
                 } else {
-                    tau + ((j as f64 + 0.5) / n as f64 - 0.5) * timing.exposure_s
+                    tau + ((j as f32 + 0.5) / n as f32 - 0.5) * exposure
                 };
-                let s = sample(rgba, width, height, c as f64 - fu * t, r as f64 - fv * t);
-                for (a, b) in sum.iter_mut().zip(s) {
-                    *a += b;
-                }
+                sample_into(
+                    &mut sum,
+                    rgba,
+                    width,
+                    height,
+                    c as f32 - du * t,
+                    r as f32 - dv * t,
+                );
             }
+            let (scale, half) = (n as u32 * 65_536, n as u32 * 32_768);
             for (o, s) in px.iter_mut().zip(sum) {
-                *o = super::quantize(s / n as f32);
+                *o = ((s + half) / scale) as u8;
             }
             px[3] = 255;
         }
@@ -166,22 +236,29 @@ pub fn expose(
     Some(out)
 }
 
-/// Bilinear RGB of `rgba` at `(u, v)` (pixel centres at integers), clamped to the border.
+/// Adds the bilinear RGB of `rgba` at `(u, v)` (pixel centres at integers, clamped to the
+/// border) to `sum`, in units of 1/65536 of a grey level (8-bit weights per axis).
 #[inline]
-fn sample(rgba: &[u8], width: usize, height: usize, u: f64, v: f64) -> [f32; 3] {
-    let u = u.clamp(0.0, (width - 1) as f64);
-    let v = v.clamp(0.0, (height - 1) as f64);
-    let (u0, v0) = (u.floor() as usize, v.floor() as usize);
-    let (u1, v1) = ((u0 + 1).min(width - 1), (v0 + 1).min(height - 1));
-    let (a, b) = ((u - u0 as f64) as f32, (v - v0 as f64) as f32);
-    let at = |x: usize, y: usize, ch: usize| rgba[(y * width + x) * 4 + ch] as f32;
-    let mut out = [0f32; 3];
-    for (ch, o) in out.iter_mut().enumerate() {
-        let top = at(u0, v0, ch) * (1.0 - a) + at(u1, v0, ch) * a;
-        let bottom = at(u0, v1, ch) * (1.0 - a) + at(u1, v1, ch) * a;
-        *o = top * (1.0 - b) + bottom * b;
+fn sample_into(sum: &mut [u32; 3], rgba: &[u8], width: usize, height: usize, u: f32, v: f32) {
+    let u = u.clamp(0.0, (width - 1) as f32);
+    let v = v.clamp(0.0, (height - 1) as f32);
+    let (u0, v0) = (u as usize, v as usize);
+    let (du, dv) = (
+        usize::from(u0 + 1 < width) * 4,
+        usize::from(v0 + 1 < height) * width * 4,
+    );
+    let a = ((u - u0 as f32) * 256.0) as u32;
+    let b = ((v - v0 as f32) * 256.0) as u32;
+    let weights = [(256 - a) * (256 - b), a * (256 - b), (256 - a) * b, a * b];
+    let at = (v0 * width + u0) * 4;
+    // The four neighbours' bytes in one slice, so that one bounds check covers them.
+    let block = &rgba[at..at + dv + du + 3];
+    for (offset, wgt) in [0, du, dv, dv + du].into_iter().zip(weights) {
+        let px = &block[offset..offset + 3];
+        sum[0] += px[0] as u32 * wgt;
+        sum[1] += px[1] as u32 * wgt;
+        sum[2] += px[2] as u32 * wgt;
     }
-    out
 }
 
 #[cfg(test)]
