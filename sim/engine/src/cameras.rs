@@ -332,14 +332,12 @@ impl Cameras {
                     }
                 }
             }
-            spans.push((
-                k,
-                start,
-                views.len(),
+            let exposed = Exposed {
                 world_from_mount,
-                camera_twist,
+                twist: camera_twist,
                 keep_depth,
-            ));
+            };
+            spans.push((k, start, views.len(), exposed));
         }
         let frames = self.renderer.render(&views);
         // Post-processing is per camera (its own noise stream), so the cameras run in
@@ -351,14 +349,8 @@ impl Cameras {
             .iter_mut()
             .enumerate()
             .filter_map(|(k, rig)| {
-                let (_, start, end, world_from_mount, twist, keep_depth) =
-                    spans.next_if(|s| s.0 == k)?;
-                let exposure = Exposed {
-                    world_from_mount,
-                    twist,
-                    keep_depth,
-                };
-                Some((rig, &frames[start..end], exposure))
+                let (_, start, end, exposed) = spans.next_if(|s| s.0 == k)?;
+                Some((rig, &frames[start..end], exposed))
             })
             .collect();
         jobs.into_par_iter()

@@ -188,10 +188,10 @@ fn vignette(g: &CameraGeometry, gain: f32, vignetting: f64) -> Option<Vec<f32>> 
         return None;
     }
     let (w, h, k) = (g.width as usize, g.height as usize, &g.k);
-    let corner2 = [(0.0, 0.0), (w as f64 - 1.0, 0.0), (0.0, h as f64 - 1.0)]
-        .into_iter()
-        .chain([(w as f64 - 1.0, h as f64 - 1.0)])
+    let (right, bottom) = (w as f64 - 1.0, h as f64 - 1.0);
+    let corner2 = [(0.0, 0.0), (right, 0.0), (0.0, bottom), (right, bottom)]
         .map(|(u, v)| (u - k.u0).powi(2) + (v - k.v0).powi(2))
+        .into_iter()
         .fold(0.0, f64::max);
     Some(
         (0..w * h)

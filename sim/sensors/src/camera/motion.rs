@@ -79,32 +79,53 @@ impl Timing {
     }
 }
 
-/// The image motion at pixel `(u, v)` of a static point at inverse depth `inv_z` (0: at
-/// infinity), pixels per second.
-#[inline]
-pub fn flow(k: &Pinhole, t: &Twist, u: f64, v: f64, inv_z: f64) -> [f64; 2] {
-    let (x, y) = ((u - k.u0) / k.alpha_u, (v - k.v0) / k.alpha_v);
-    let (vl, w) = (&t.v, &t.w);
-    let xd = (-vl.x + x * vl.z) * inv_z + x * y * w.x - (1.0 + x * x) * w.y + y * w.z;
-    let yd = (-vl.y + y * vl.z) * inv_z + (1.0 + y * y) * w.x - x * y * w.y - x * w.z;
-    [k.alpha_u * xd, k.alpha_v * yd]
+/// A camera's image motion in f32 (a byte image needs no more): its focal lengths and twist.
+struct Flow {
+    f: [f32; 2],
+    v: Vector3<f32>,
+    w: Vector3<f32>,
 }
 
-/// An upper bound of `|flow|` over a `width x height` image whose nearest point is at
-/// `min_depth_m`: the rotation's at the farthest corner plus the translation's at that depth.
-fn flow_bound(k: &Pinhole, t: &Twist, width: usize, height: usize, min_depth_m: f64) -> f64 {
-    let xm = (k.u0.abs().max((width as f64 - k.u0).abs())) / k.alpha_u;
-    let ym = (k.v0.abs().max((height as f64 - k.v0).abs())) / k.alpha_v;
-    let f = k.alpha_u.max(k.alpha_v);
-    let w = t.w.abs();
-    let rot =
-        f * ((xm * ym + 1.0 + ym * ym) * w.x + (1.0 + xm * xm + xm * ym) * w.y + (xm + ym) * w.z);
-    let trans = if min_depth_m.is_finite() {
-        f * (t.v.x.abs() + t.v.y.abs() + (xm + ym) * t.v.z.abs()) / min_depth_m
+impl Flow {
+    fn new(k: &Pinhole, t: &Twist) -> Self {
+        Self {
+            f: [k.alpha_u as f32, k.alpha_v as f32],
+            v: t.v.map(|x| x as f32),
+            w: t.w.map(|x| x as f32),
+        }
+    }
+
+    /// The motion, pixels per second, at normalized image coordinates `(x, y)` of a static
+    /// point at inverse depth `inv_z` (0: at infinity): the module's equations.
+    #[inline]
+    fn at(&self, x: f32, y: f32, inv_z: f32) -> [f32; 2] {
+        let (v, w) = (&self.v, &self.w);
+        let xd = (-v.x + x * v.z) * inv_z + x * y * w.x - (1.0 + x * x) * w.y + y * w.z;
+        let yd = (-v.y + y * v.z) * inv_z + (1.0 + y * y) * w.x - x * y * w.y - x * w.z;
+        [self.f[0] * xd, self.f[1] * yd]
+    }
+
+    /// An upper bound of the squared motion over points with `|x| <= xm`, `|y| <= ym` and
+    /// inverse depth at most `inv_z`: each term of [`Flow::at`] at its largest.
+    fn bound2(&self, xm: f32, ym: f32, inv_z: f32) -> f32 {
+        let (v, w) = (self.v.abs(), self.w.abs());
+        let bu = (v.x + xm * v.z) * inv_z + xm * ym * w.x + (1.0 + xm * xm) * w.y + ym * w.z;
+        let bv = (v.y + ym * v.z) * inv_z + (1.0 + ym * ym) * w.x + xm * ym * w.y + xm * w.z;
+        (self.f[0] * bu).powi(2) + (self.f[1] * bv).powi(2)
+    }
+}
+
+/// The inverse of the nearest positive depth of `depth` (0 where all of it is sky).
+fn nearest_inverse_depth(depth: Option<&[f32]>) -> f32 {
+    let near = depth.map_or(f32::INFINITY, |d| {
+        d.iter()
+            .fold(f32::INFINITY, |a, &z| if z > 0.0 { a.min(z) } else { a })
+    });
+    if near.is_finite() {
+        1.0 / near
     } else {
         0.0
-    };
-    rot + trans
+    }
 }
 
 /// The rendered RGBA image `rgba` (`width x height`, pinhole `k`, depth along the optical axis
@@ -122,67 +143,43 @@ pub fn expose(
     if timing.is_instant() || (twist.v.norm() == 0.0 && twist.w.norm() == 0.0) {
         return None;
     }
-    let min_depth = depth_m
-        .map(|d| {
-            d.iter()
-                .filter(|&&z| z > 0.0)
-                .fold(f32::INFINITY, |a, &z| a.min(z)) as f64
-        })
-        .unwrap_or(f64::INFINITY);
-    let bound = flow_bound(k, twist, width, height, min_depth);
-    let max_shift = bound * timing.row_offset_s(0, height).abs();
-    if bound * timing.exposure_s < BLUR_MIN_PX && max_shift < SHIFT_MIN_PX {
-        return None;
-    }
-    let mut out = vec![0u8; rgba.len()];
-    // Per column and row: the normalized image coordinates, and the rotation's flow terms
-    // that depend on one of them only; all in f32 (a byte image needs no more).
+    const BLUR_MIN_PX2: f32 = (BLUR_MIN_PX * BLUR_MIN_PX) as f32;
+    const SHIFT_MIN_PX2: f32 = (SHIFT_MIN_PX * SHIFT_MIN_PX) as f32;
+    let flow = Flow::new(k, twist);
+    let exposure = timing.exposure_s as f32;
+    // Whether motion bounded by `speed2` (squared) neither blurs nor shifts rows offset `tau`.
+    let still = |speed2: f32, tau: f32| {
+        speed2 * exposure * exposure < BLUR_MIN_PX2 && speed2 * tau * tau < SHIFT_MIN_PX2
+    };
+    // Normalized image coordinates of each column and row.
     let xs: Vec<f32> = (0..width)
         .map(|c| ((c as f64 - k.u0) / k.alpha_u) as f32)
         .collect();
-    let (fu, fv) = (k.alpha_u as f32, k.alpha_v as f32);
-    let v = twist.v.map(|x| x as f32);
-    let w = twist.w.map(|x| x as f32);
-    let exposure = timing.exposure_s as f32;
-    const BLUR_MIN_PX2: f32 = (BLUR_MIN_PX * BLUR_MIN_PX) as f32;
-    const SHIFT_MIN_PX2: f32 = (SHIFT_MIN_PX * SHIFT_MIN_PX) as f32;
+    let ys: Vec<f32> = (0..height)
+        .map(|r| ((r as f64 - k.v0) / k.alpha_v) as f32)
+        .collect();
+    let widest = |c: &[f32]| c.iter().fold(0f32, |a, x| a.max(x.abs()));
+    let image_bound = flow.bound2(widest(&xs), widest(&ys), nearest_inverse_depth(depth_m));
+    if still(image_bound, timing.row_offset_s(0, height) as f32) {
+        return None;
+    }
+    let mut out = vec![0u8; rgba.len()];
     for (r, row) in out.chunks_exact_mut(width * 4).enumerate() {
         let tau = timing.row_offset_s(r, height) as f32;
-        let y = ((r as f64 - k.v0) / k.alpha_v) as f32;
+        let y = ys[r];
         let depth_row = depth_m.map(|d| &d[r * width..(r + 1) * width]);
         // Segments of a row whose every pixel moves less than the thresholds (a bound from
         // the segment's nearest depth and its widest x) are copied as they are.
-        let still = |c0: usize, c1: usize| {
+        let segment_still = |c0: usize, c1: usize| {
             let xm = xs[c0].abs().max(xs[c1 - 1].abs());
-            let inv_z = depth_row.map_or(0.0, |d| {
-                let z = d[c0..c1]
-                    .iter()
-                    .fold(f32::INFINITY, |a, &z| if z > 0.0 { a.min(z) } else { a });
-                if z.is_finite() {
-                    1.0 / z
-                } else {
-                    0.0
-                }
-            });
-            let (ay, aw, av) = (y.abs(), w.abs(), v.abs());
-            let bu = fu
-                * ((av.x + xm * av.z) * inv_z
-                    + xm * ay * aw.x
-                    + (1.0 + xm * xm) * aw.y
-                    + ay * aw.z);
-            let bv = fv
-                * ((av.y + ay * av.z) * inv_z
-                    + (1.0 + ay * ay) * aw.x
-                    + xm * ay * aw.y
-                    + xm * aw.z);
-            let speed2 = bu * bu + bv * bv;
-            speed2 * exposure * exposure < BLUR_MIN_PX2 && speed2 * tau * tau < SHIFT_MIN_PX2
+            let inv_z = nearest_inverse_depth(depth_row.map(|d| &d[c0..c1]));
+            still(flow.bound2(xm, y.abs(), inv_z), tau)
         };
         let mut still_until = 0;
         for (c, px) in row.chunks_exact_mut(4).enumerate() {
             if c % SEGMENT_PX == 0 {
                 let end = (c + SEGMENT_PX).min(width);
-                if still(c, end) {
+                if segment_still(c, end) {
                     still_until = end;
                 }
             }
@@ -191,19 +188,17 @@ pub fn expose(
                 px.copy_from_slice(&rgba[i * 4..i * 4 + 4]);
                 continue;
             }
-            let x = xs[c];
             let z = depth_row.map_or(0.0, |d| d[c]);
             let inv_z = if z > 0.0 { 1.0 / z } else { 0.0 };
-            let du = fu * ((-v.x + x * v.z) * inv_z + x * y * w.x - (1.0 + x * x) * w.y + y * w.z);
-            let dv = fv * ((-v.y + y * v.z) * inv_z + (1.0 + y * y) * w.x - x * y * w.y - x * w.z);
+            let [du, dv] = flow.at(xs[c], y, inv_z);
             // Squared lengths first: most pixels of a slow camera stop here.
             let speed2 = du * du + dv * dv;
-            let blurs = speed2 * exposure * exposure >= BLUR_MIN_PX2;
             let i = r * width + c;
-            if !blurs && speed2 * tau * tau < SHIFT_MIN_PX2 {
+            if still(speed2, tau) {
                 px.copy_from_slice(&rgba[i * 4..i * 4 + 4]);
                 continue;
             }
+            let blurs = speed2 * exposure * exposure >= BLUR_MIN_PX2;
             let n = if blurs {
                 ((speed2.sqrt() * exposure / SAMPLE_SPACING_PX).ceil() as usize)
                     .clamp(2, MAX_SAMPLES)
@@ -366,12 +361,21 @@ mod tests {
         sum.iter().map(|s| (s / m as f64).round() as u8).collect()
     }
 
+    /// The mean error of [`expose`] and of the rendered instant against `m` exact views over
+    /// each row's exposure window, for a camera at the origin moving with `twist`.
+    fn against_reference(twist: &Twist, timing: &Timing, m: usize) -> (f64, f64) {
+        let k = CameraGeometry::from_hfov(W as u32, H as u32, 60.0).k;
+        let start = Isometry3::identity();
+        let (rgba, depth) = view(&k, &start);
+        let exposed = expose(&rgba, Some(&depth), W, H, &k, twist, timing).expect("moving");
+        let reference = accumulate(&k, &start, twist, timing, m);
+        (mean_abs(&exposed, &reference), mean_abs(&rgba, &reference))
+    }
+
     /// The blur explains the exposure: against sub-frame accumulation its error is under a
     /// fifth of the error of the instant it replaces, and under one grey level on average.
     #[test]
     fn blur_matches_sub_frame_accumulation() {
-        let k = CameraGeometry::from_hfov(W as u32, H as u32, 60.0).k;
-        let start = Isometry3::identity();
         let twist = Twist {
             v: Vector3::new(2.0, -1.0, 3.0),
             w: Vector3::new(0.4, -1.5, 0.8),
@@ -380,10 +384,7 @@ mod tests {
             exposure_s: 0.02,
             line_delay_s: 0.0,
         };
-        let (rgba, depth) = view(&k, &start);
-        let blurred = expose(&rgba, Some(&depth), W, H, &k, &twist, &timing).expect("moving");
-        let reference = accumulate(&k, &start, &twist, &timing, 64);
-        let (model, instant) = (mean_abs(&blurred, &reference), mean_abs(&rgba, &reference));
+        let (model, instant) = against_reference(&twist, &timing, 64);
         assert!(instant > 3.0, "the test's motion must blur: {instant}");
         assert!(
             model < 0.2 * instant && model < 1.0,
@@ -394,8 +395,6 @@ mod tests {
     /// A rolling shutter's rows, each at its own time, as exact views at those times.
     #[test]
     fn rolling_shutter_matches_row_by_row_views() {
-        let k = CameraGeometry::from_hfov(W as u32, H as u32, 60.0).k;
-        let start = Isometry3::identity();
         let twist = Twist {
             v: Vector3::new(1.0, 0.0, 0.5),
             w: Vector3::new(0.0, 2.0, 0.3),
@@ -404,10 +403,7 @@ mod tests {
             exposure_s: 0.0,
             line_delay_s: 100e-6,
         };
-        let (rgba, depth) = view(&k, &start);
-        let rolled = expose(&rgba, Some(&depth), W, H, &k, &twist, &timing).expect("rolling");
-        let reference = accumulate(&k, &start, &twist, &timing, 1);
-        let (model, instant) = (mean_abs(&rolled, &reference), mean_abs(&rgba, &reference));
+        let (model, instant) = against_reference(&twist, &timing, 1);
         assert!(instant > 3.0, "the shutter must move rows: {instant}");
         assert!(
             model < 0.2 * instant && model < 1.5,

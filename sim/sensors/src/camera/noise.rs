@@ -382,6 +382,29 @@ mod tests {
 mod fast_path {
     use super::*;
 
+    /// Vignetting's per-pixel gains, all equal, are the scalar gain's general path bit for
+    /// bit; and a pixel's own gain scales only that pixel.
+    #[test]
+    fn per_pixel_gains_are_the_general_path_pixel_by_pixel() {
+        let noise = PixelNoise::new(2.0);
+        let src: Vec<u8> = (0..10_001 * 4).map(|i| (i * 53 % 256) as u8).collect();
+        let uniform = vec![0.8f32; 10_001];
+        let mut a = hetsim_core::Streams::new(5).stream("v");
+        let mut b = hetsim_core::Streams::new(5).stream("v");
+        assert!(noise.apply_mapped(&src, 4, &uniform, &mut a) == noise.apply(&src, 4, 0.8, &mut b));
+        let quiet = PixelNoise::new(0.0);
+        let mut gains = vec![1.0f32; 10_001];
+        gains[17] = 0.5;
+        let mut c = hetsim_core::Streams::new(5).stream("v");
+        let out = quiet.apply_mapped(&src, 4, &gains, &mut c);
+        for (i, px) in out.chunks_exact(3).enumerate() {
+            for ch in 0..3 {
+                let want = quantize(src[i * 4 + ch] as f32 * gains[i]);
+                assert_eq!(px[ch], want, "pixel {i} channel {ch}");
+            }
+        }
+    }
+
     #[test]
     fn the_rgba_path_adds_the_same_noise_as_the_general_one() {
         // 100 003 pixels: about 150 draws in tail cells, and three pixels past the last block
